@@ -1,0 +1,35 @@
+"""Backend registry: peripheral kind -> backend name -> (module, class).
+
+Only the chosen backend's module is imported, so a robot without pyserial never imports
+it, and the simulator never imports real drivers (the python-can pattern).
+"""
+from __future__ import annotations
+
+import importlib
+
+BACKENDS: dict[str, dict[str, tuple[str, str]]] = {
+    "clock": {"sim": ("hal.sim.clock", "SimClock")},
+    "lidar": {"sim": ("hal.sim.lidar", "SimLidar")},
+    "odometry": {"sim": ("hal.sim.odometry", "SimOdometry")},
+    "drive": {"sim": ("hal.sim.drive", "SimDriveBase")},
+    "uwb": {"sim": ("hal.sim.uwb", "SimUwbRanger")},
+    "aoa": {"sim": ("hal.sim.aoa", "SimWifiAoa")},
+    "radio": {
+        "sim": ("hal.sim.radio", "SimRadioModem"),
+        "rn2483": ("hal.rn2483", "Rn2483Modem"),
+    },
+}
+
+
+class UnknownBackend(LookupError):
+    pass
+
+
+def backend_class(kind: str, name: str) -> type:
+    """The class implementing peripheral `kind` for backend `name`, imported on demand."""
+    try:
+        module_name, class_name = BACKENDS[kind][name]
+    except KeyError:
+        known = ", ".join(f"{k}:{n}" for k, names in BACKENDS.items() for n in names)
+        raise UnknownBackend(f"no backend {name!r} for {kind!r}; known: {known}") from None
+    return getattr(importlib.import_module(module_name), class_name)

@@ -1,0 +1,81 @@
+"""Frozen sample types passed between HAL backends and the firmware.
+
+Every sample carries the time it was taken (`stamp_us`, integer microseconds of the
+mission clock) and every field carries its unit in its name.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class LidarScan:
+    """One 360-degree planar scan. Beam i points at angle_min_rad + i * angle_increment_rad
+    in the robot frame. A beam that hit nothing reads range_max_m."""
+
+    stamp_us: int
+    angle_min_rad: float
+    angle_increment_rad: float
+    range_max_m: float
+    ranges_m: np.ndarray = field(repr=False)  # float32, one per beam
+
+
+@dataclass(frozen=True)
+class OdometrySample:
+    """Pose estimate in the mission frame (shared start frame, Bayer & Faigl assumption 1),
+    as the robot's localisation reports it: it may drift from the truth."""
+
+    stamp_us: int
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    v_mps: float
+    omega_radps: float
+
+
+@dataclass(frozen=True)
+class DriveLimits:
+    max_v_mps: float
+    max_omega_radps: float
+    robot_radius_m: float
+
+
+@dataclass(frozen=True)
+class UwbRange:
+    """Two-way ranging result to another robot's UWB tag."""
+
+    stamp_us: int
+    peer_id: int
+    range_m: float
+
+
+@dataclass(frozen=True)
+class AoaBearing:
+    """Angle of arrival of another robot's WiFi packets, in this robot's frame."""
+
+    stamp_us: int
+    peer_id: int
+    bearing_rad: float
+
+
+@dataclass(frozen=True)
+class RadioRxFrame:
+    """A frame the modem received with a good PHY CRC."""
+
+    stamp_us: int
+    payload: bytes
+    rssi_dbm: float
+    snr_db: float
+
+
+@dataclass(frozen=True)
+class RadioTxDone:
+    """The modem finished (ok=True) or aborted (ok=False) the frame it was sending."""
+
+    stamp_us: int
+    ok: bool
+
+
+RadioEvent = RadioRxFrame | RadioTxDone

@@ -1,0 +1,33 @@
+"""`lorascout` command line: one sub-command per module, imported only when used."""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# name -> (module, one-line help). Each module defines add_arguments(parser) and main(args) -> int.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "run": ("host_tools.cmd_run", "run one mission on the simulated HAL and report it"),
+    "bench": ("host_tools.cmd_bench", "measure firmware tick time, simulation speed and memory"),
+    "modem": ("host_tools.cmd_modem", "serve virtual RN2483 modems on pseudo-terminals"),
+    "inspect": ("host_tools.cmd_inspect", "decode radio frames from a serial port or a capture"),
+}
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if not argv:
+        argv = ["run"]  # the built-in default mission
+    parser = argparse.ArgumentParser(prog="lorascout", description="lorascout: low-bandwidth multi-robot exploration")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, (module_name, help_text) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        p.set_defaults(_module=module_name)
+        if argv[0] == name:
+            importlib.import_module(module_name).add_arguments(p)
+    args = parser.parse_args(argv)
+    return int(importlib.import_module(args._module).main(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
