@@ -1,0 +1,205 @@
+"""One string names a ground-truth map: a ROS map YAML path, or a seeded generated world.
+
+    depot.yaml / /abs/path/intel.yaml     ROS map_server map, start = default_start(map)
+    cave:SEED  /  cave:SEED:WxH           generated cave, W x H metres (default 100x100)
+    tunnel:SEED / tunnel:SEED:WxH         generated mine tunnels
+
+Also the start-pose helpers every mission needs: a deterministic default start and a set of
+staging poses around it for a team.
+"""
+from __future__ import annotations
+
+import heapq
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from world_sim.occupancy_map import OccupancyMap
+
+Pose = tuple[float, float, float]  # (x_m, y_m, yaw_rad)
+
+DEFAULT_SIZE_M = (100.0, 100.0)
+MAX_SIDE_M = 2000.0
+_GENERATED_KINDS = ("cave", "tunnel")
+_EIGHT_CONNECTED = np.ones((3, 3), dtype=bool)
+_SPEC_HELP = (
+    "accepted: a path to a ROS map .yaml, or cave:SEED, tunnel:SEED, "
+    "cave:SEED:WxH, tunnel:SEED:WxH (SEED a non-negative integer, W and H in metres, e.g. cave:3:200x150)"
+)
+_HEADINGS = 16
+_HEADING_LOOK_M = 20.0
+
+
+class MapSpecError(ValueError):
+    """A map spec string that names no map; the message says what is wrong and what is accepted."""
+
+
+def resolve_map(spec: str) -> tuple[OccupancyMap, Pose, str]:
+    """(ground truth, start pose, label for reports) for a map spec string."""
+    if not isinstance(spec, str) or not spec.strip():
+        raise MapSpecError(f"empty map spec; {_SPEC_HELP}")
+    text = spec.strip()
+    kind = text.split(":", 1)[0].lower()
+    if kind in _GENERATED_KINDS and ":" in text:
+        return _resolve_generated(text, kind)
+    if text.lower().endswith((".yaml", ".yml")):
+        from world_sim.ros_map import load_ros_map
+
+        occ = load_ros_map(text)
+        return occ, default_start(occ), Path(text).name
+    raise MapSpecError(f"unrecognised map spec {spec!r}; {_SPEC_HELP}")
+
+
+def _resolve_generated(text: str, kind: str) -> tuple[OccupancyMap, Pose, str]:
+    from world_sim import procgen
+
+    parts = text.split(":")
+    if len(parts) not in (2, 3):
+        raise MapSpecError(f"map spec {text!r} has {len(parts) - 1} ':' separators; {_SPEC_HELP}")
+    seed_text = parts[1].strip()
+    if not re.fullmatch(r"\d+", seed_text):
+        raise MapSpecError(f"map spec {text!r}: seed {seed_text!r} is not a non-negative integer; {_SPEC_HELP}")
+    seed = int(seed_text)
+    width_m, height_m = DEFAULT_SIZE_M
+    if len(parts) == 3:
+        match = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*[xX]\s*(\d+(?:\.\d+)?)\s*", parts[2])
+        if match is None:
+            raise MapSpecError(f"map spec {text!r}: size {parts[2]!r} is not WxH in metres; {_SPEC_HELP}")
+        width_m, height_m = float(match.group(1)), float(match.group(2))
+        lo = procgen.MIN_SIDE_M
+        for name, value in (("width", width_m), ("height", height_m)):
+            if not lo <= value <= MAX_SIDE_M:
+                raise MapSpecError(
+                    f"map spec {text!r}: {name} {value:g} m is outside {lo:g}..{MAX_SIDE_M:g} m"
+                )
+    generate = procgen.generate_cave if kind == "cave" else procgen.generate_tunnel
+    occ, start = generate(seed, width_m=width_m, height_m=height_m)
+    label = f"{kind}:{seed}:{width_m:g}x{height_m:g}"
+    return occ, start, label
+
+
+# ----------------------------------------------------------------------------- start poses
+
+
+def clearance_field_m(free: np.ndarray, resolution_m: float) -> np.ndarray:
+    """Distance (m) from each free cell's centre to the nearest wall face; 0 on walls.
+
+    Outside the grid counts as wall, so a map open at its edge never yields a start that
+    looks roomy only because the world ends there."""
+    padded = np.pad(free, 1, constant_values=False)
+    centre_to_centre = ndimage.distance_transform_edt(padded)[1:-1, 1:-1]
+    return np.where(free, (centre_to_centre - 0.5) * resolution_m, 0.0)
+
+
+def open_heading_rad(free: np.ndarray, row: int, col: int, resolution_m: float) -> float:
+    """Yaw of the longest free straight run from a cell (16 headings, first one wins ties)."""
+    steps = max(1, int(round(_HEADING_LOOK_M / resolution_m)))
+    distance = np.arange(1, steps + 1, dtype=np.float64)
+    best_k, best_run = 0, -1
+    for k in range(_HEADINGS):
+        angle = 2.0 * math.pi * k / _HEADINGS
+        rows = np.floor(row + 0.5 + distance * math.sin(angle)).astype(np.int64)
+        cols = np.floor(col + 0.5 + distance * math.cos(angle)).astype(np.int64)
+        inside = (rows >= 0) & (rows < free.shape[0]) & (cols >= 0) & (cols < free.shape[1])
+        ok = inside.copy()
+        ok[inside] = free[rows[inside], cols[inside]]
+        run = steps if ok.all() else int(np.argmin(ok))
+        if run > best_run:
+            best_k, best_run = k, run
+    return 2.0 * math.pi * best_k / _HEADINGS
+
+
+def default_start(occ: OccupancyMap) -> Pose:
+    """The most open cell of the largest free component (first in row-major order on ties),
+    facing its longest free straight run."""
+    labels, count = ndimage.label(occ.free, structure=_EIGHT_CONNECTED)
+    if count == 0:
+        raise ValueError(f"map '{occ.name}' has no free cell to start in")
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    largest = int(np.argmax(sizes))
+    clearance = clearance_field_m(occ.free, occ.resolution_m)
+    clearance[labels != largest] = -1.0
+    row, col = np.unravel_index(int(np.argmax(clearance)), clearance.shape)
+    x_m, y_m = occ.center_of(int(row), int(col))
+    return (x_m, y_m, open_heading_rad(occ.free, int(row), int(col), occ.resolution_m))
+
+
+def staging_poses(
+    occ: OccupancyMap, start: Pose, n: int, spacing_m: float = 1.0, clearance_m: float = 0.5
+) -> list[Pose]:
+    """n poses around `start`, pairwise at least spacing_m apart, each on a cell at least
+    clearance_m from any wall, all in one region a robot of that clearance can drive through.
+
+    Pose 0 is the start itself when it has the clearance. The rest are taken nearest first by
+    driving distance (8-connected steps through roomy cells), so a team shares one staging
+    area instead of being spread through walls. All poses face the start's yaw."""
+    clearance_m_min = float(clearance_m)
+    if n < 0:
+        raise ValueError(f"n must be >= 0, got {n}")
+    if not spacing_m > 0.0 or not clearance_m_min >= 0.0:
+        raise ValueError(f"spacing_m must be > 0 and clearance_m >= 0, got {spacing_m}, {clearance_m_min}")
+    if n == 0:
+        return []
+    x0, y0, yaw = float(start[0]), float(start[1]), float(start[2])
+    row0, col0 = occ.cell_of(x0, y0)
+    if not (0 <= row0 < occ.rows and 0 <= col0 < occ.cols) or not occ.free[row0, col0]:
+        raise ValueError(f"start ({x0:.3f}, {y0:.3f}) m is not on a free cell of map '{occ.name}'")
+    roomy = clearance_field_m(occ.free, occ.resolution_m) >= clearance_m_min
+    seed_cell = _nearest_roomy_cell(occ, roomy, row0, col0)
+    if seed_cell is None:
+        raise ValueError(
+            f"no cell with {clearance_m_min:g} m clearance is reachable from the start "
+            f"({x0:.3f}, {y0:.3f}) m on map '{occ.name}'"
+        )
+    res = occ.resolution_m
+    chosen_rc: list[tuple[float, float]] = []  # in cells, for the spacing test
+    poses: list[Pose] = []
+    spacing_cells2 = (spacing_m / res) ** 2
+    if seed_cell == (row0, col0):
+        chosen_rc.append(((y0 - occ.origin_y_m) / res - 0.5, (x0 - occ.origin_x_m) / res - 0.5))
+        poses.append((x0, y0, yaw))
+    # Dijkstra over roomy cells, octile step costs; ties broken by (row, col) for determinism
+    seen = np.zeros(roomy.shape, dtype=bool)
+    heap = [(0.0, seed_cell[0], seed_cell[1])]
+    best = {seed_cell: 0.0}
+    neighbours = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+    while heap and len(poses) < n:
+        dist, r, c = heapq.heappop(heap)
+        if seen[r, c]:
+            continue
+        seen[r, c] = True
+        if all((r - cr) ** 2 + (c - cc) ** 2 >= spacing_cells2 - 1e-9 for cr, cc in chosen_rc):
+            chosen_rc.append((float(r), float(c)))
+            x_m, y_m = occ.center_of(r, c)
+            poses.append((x_m, y_m, yaw))
+        for dr, dc in neighbours:
+            rr, cc = r + dr, c + dc
+            if 0 <= rr < occ.rows and 0 <= cc < occ.cols and roomy[rr, cc] and not seen[rr, cc]:
+                nd = dist + (math.sqrt(2.0) if dr and dc else 1.0)
+                if nd < best.get((rr, cc), math.inf):
+                    best[(rr, cc)] = nd
+                    heapq.heappush(heap, (nd, rr, cc))
+    if len(poses) < n:
+        raise ValueError(
+            f"only {len(poses)} of {n} staging poses fit {spacing_m:g} m apart with "
+            f"{clearance_m_min:g} m clearance around the start on map '{occ.name}'"
+        )
+    return poses
+
+
+def _nearest_roomy_cell(occ: OccupancyMap, roomy: np.ndarray, row0: int, col0: int):
+    """The roomy cell nearest the start within the start's free component, or None."""
+    if roomy[row0, col0]:
+        return (row0, col0)
+    labels, _ = ndimage.label(occ.free, structure=_EIGHT_CONNECTED)
+    candidates = roomy & (labels == labels[row0, col0])
+    if not candidates.any():
+        return None
+    rows, cols = np.nonzero(candidates)
+    d2 = (rows - row0) ** 2 + (cols - col0) ** 2
+    i = int(np.lexsort((cols, rows, d2))[0])
+    return (int(rows[i]), int(cols[i]))

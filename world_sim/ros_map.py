@@ -1,0 +1,290 @@
+"""Ground truth from any ROS `map_server` map (a YAML file naming an image).
+
+The pixel rules follow ROS 1 map_server's image_loader.cpp, because that is what the maps in
+the wild were drawn for:
+- the channels of a pixel are averaged; in trinary mode an alpha channel is averaged in too,
+  in scale and raw mode it is left out (map_server does exactly this);
+- `negate` flips the average (`255 - avg`) before anything else;
+- trinary / scale: occupancy p = (255 - avg) / 255; free where p < free_thresh;
+- raw: the (negated) average *is* the occupancy in percent (0..100; anything above 100 is
+  map_server's "unknown"); free where value / 100 < free_thresh, so the YAML's threshold keeps
+  its meaning in all three modes.
+For a simulator's ground truth every cell that is not free is wall: unknown space in a recorded
+map is space no robot has seen, and several real maps are open at their edges.
+
+A palette image is read through its palette (what a person sees), not by its index values.
+16-bit images are scaled to 0..255 first.
+"""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import yaml
+from PIL import Image, UnidentifiedImageError
+from scipy import ndimage
+
+from world_sim.occupancy_map import OccupancyMap
+
+_REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
+_MODES = ("trinary", "scale", "raw")
+_EIGHT_CONNECTED = np.ones((3, 3), dtype=bool)
+
+
+class MapFormatError(ValueError):
+    """A map file that cannot be turned into ground truth; the message names file, line, field."""
+
+
+def load_ros_map(yaml_path: str | os.PathLike) -> OccupancyMap:
+    """Load a map_server YAML + image as an OccupancyMap (row 0 = lowest y)."""
+    path = Path(yaml_path)
+    where = path.name
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise MapFormatError(f"{path}: map YAML file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise MapFormatError(f"{path}: cannot read map YAML: {exc}") from None
+
+    fields = _parse_yaml_fields(text, where)
+    resolution_m = _positive_number(fields, "resolution", where)
+    origin_x_m, origin_y_m = _origin(fields, where)
+    negate = _negate(fields, where)
+    occupied_thresh = _unit_interval(fields, "occupied_thresh", where)
+    free_thresh = _unit_interval(fields, "free_thresh", where)
+    if free_thresh >= occupied_thresh:
+        line = fields["free_thresh"][1]
+        raise MapFormatError(
+            f"{where}:{line}: field 'free_thresh': must be below occupied_thresh "
+            f"({occupied_thresh:g}), got {free_thresh:g}"
+        )
+    mode = _mode(fields, where)
+    image_path = _image_path(fields, path, where)
+
+    average = _channel_average(image_path, mode, where, fields["image"][1])
+    if negate:
+        average = 255.0 - average
+    if mode == "raw":
+        value = np.rint(average)
+        free_top_down = (value <= 100.0) & (value / 100.0 < free_thresh)
+    else:
+        occupancy = (255.0 - average) / 255.0
+        free_top_down = occupancy < free_thresh
+
+    return OccupancyMap(
+        free=np.ascontiguousarray(np.flipud(free_top_down)),
+        resolution_m=resolution_m,
+        origin_x_m=origin_x_m,
+        origin_y_m=origin_y_m,
+        name=path.name,
+    )
+
+
+def reachable_free(occ: OccupancyMap, start_xy: tuple[float, float]) -> np.ndarray:
+    """Bool grid of the 8-connected free component that contains the start point."""
+    row, col = occ.cell_of(float(start_xy[0]), float(start_xy[1]))
+    if not (0 <= row < occ.rows and 0 <= col < occ.cols):
+        raise ValueError(
+            f"start ({start_xy[0]:.3f}, {start_xy[1]:.3f}) m lies outside map '{occ.name}' "
+            f"(x {occ.origin_x_m:g}..{occ.origin_x_m + occ.width_m:g} m, "
+            f"y {occ.origin_y_m:g}..{occ.origin_y_m + occ.height_m:g} m)"
+        )
+    if not occ.free[row, col]:
+        raise ValueError(
+            f"start ({start_xy[0]:.3f}, {start_xy[1]:.3f}) m is in a wall cell "
+            f"(row {row}, col {col}) of map '{occ.name}'"
+        )
+    labels, _ = ndimage.label(occ.free, structure=_EIGHT_CONNECTED)
+    return labels == labels[row, col]
+
+
+def reachable_area_m2(occ: OccupancyMap, start_xy: tuple[float, float]) -> float:
+    """Area of the free component containing the start, in square metres."""
+    return float(np.count_nonzero(reachable_free(occ, start_xy))) * occ.resolution_m ** 2
+
+
+# ----------------------------------------------------------------------------- YAML fields
+
+
+def _parse_yaml_fields(text: str, where: str) -> dict[str, tuple[object, int]]:
+    """Top-level key -> (python value, 1-based line of the value)."""
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+        line = f":{mark.line + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise MapFormatError(f"{where}{line}: malformed YAML: {problem}") from None
+    if root is None:
+        raise MapFormatError(f"{where}: empty map YAML; needs fields {', '.join(_REQUIRED)}")
+    if not isinstance(root, yaml.MappingNode):
+        raise MapFormatError(
+            f"{where}:{root.start_mark.line + 1}: expected a mapping of fields "
+            f"({', '.join(_REQUIRED)}), got a {root.id}"
+        )
+    constructor = yaml.SafeLoader("")
+    fields: dict[str, tuple[object, int]] = {}
+    for key_node, value_node in root.value:
+        line = key_node.start_mark.line + 1
+        try:
+            key = constructor.construct_object(key_node, deep=True)
+            value = constructor.construct_object(value_node, deep=True)
+        except yaml.YAMLError as exc:
+            raise MapFormatError(f"{where}:{line}: malformed YAML value: {exc}") from None
+        if not isinstance(key, str):
+            continue  # map_server ignores anything it does not look up
+        if key in fields:
+            raise MapFormatError(
+                f"{where}:{line}: field '{key}': duplicate key (first at line {fields[key][1]})"
+            )
+        fields[key] = (value, value_node.start_mark.line + 1)
+    missing = [name for name in _REQUIRED if name not in fields]
+    if missing:
+        names = ", ".join(f"'{m}'" for m in missing)
+        raise MapFormatError(
+            f"{where}:{root.start_mark.line + 1}: missing required field{'s' if len(missing) > 1 else ''} {names}"
+        )
+    return fields
+
+
+def _as_number(value: object) -> float | None:
+    # yaml-cpp (which map_server uses) reads any scalar that spells a number, quoted or not,
+    # and YAML 1.1 leaves `5e-2` a string: accept both, reject booleans and non-finite values.
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, (int, float)):
+        number = float(value)
+    elif isinstance(value, str):
+        try:
+            number = float(value.strip())
+        except ValueError:
+            return None
+    else:
+        return None
+    return number if math.isfinite(number) else None
+
+
+def _positive_number(fields, name: str, where: str) -> float:
+    value, line = fields[name]
+    number = _as_number(value)
+    if number is None or number <= 0.0:
+        raise MapFormatError(f"{where}:{line}: field '{name}': expected a positive number, got {value!r}")
+    return number
+
+
+def _unit_interval(fields, name: str, where: str) -> float:
+    value, line = fields[name]
+    number = _as_number(value)
+    if number is None or not 0.0 <= number <= 1.0:
+        raise MapFormatError(
+            f"{where}:{line}: field '{name}': expected a number in [0, 1], got {value!r}"
+        )
+    return number
+
+
+def _origin(fields, where: str) -> tuple[float, float]:
+    value, line = fields["origin"]
+    if not isinstance(value, list) or len(value) != 3:
+        raise MapFormatError(
+            f"{where}:{line}: field 'origin': expected [x, y, yaw] (three numbers), got {value!r}"
+        )
+    numbers = [_as_number(v) for v in value]
+    for label, number, raw in zip(("x", "y", "yaw"), numbers, value):
+        if number is None:
+            raise MapFormatError(
+                f"{where}:{line}: field 'origin': {label} must be a number, got {raw!r}"
+            )
+    if numbers[2] != 0.0:
+        raise MapFormatError(
+            f"{where}:{line}: field 'origin': rotated origins are unsupported "
+            f"(yaw must be 0, got {numbers[2]:g} rad)"
+        )
+    return numbers[0], numbers[1]
+
+
+def _negate(fields, where: str) -> bool:
+    value, line = fields["negate"]
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, int) and value in (0, 1):
+        return bool(value)
+    raise MapFormatError(f"{where}:{line}: field 'negate': expected 0 or 1, got {value!r}")
+
+
+def _mode(fields, where: str) -> str:
+    if "mode" not in fields:
+        return "trinary"
+    value, line = fields["mode"]
+    if not isinstance(value, str) or value.strip().lower() not in _MODES:
+        raise MapFormatError(
+            f"{where}:{line}: field 'mode': expected one of {', '.join(_MODES)}, got {value!r}"
+        )
+    return value.strip().lower()
+
+
+def _image_path(fields, yaml_path: Path, where: str) -> Path:
+    value, line = fields["image"]
+    if not isinstance(value, str) or not value.strip():
+        raise MapFormatError(f"{where}:{line}: field 'image': expected an image file name, got {value!r}")
+    image = Path(value.strip())
+    if not image.is_absolute():
+        image = yaml_path.parent / image
+    if not image.is_file():
+        raise MapFormatError(f"{where}:{line}: field 'image': image file not found: {image}")
+    return image
+
+
+# ----------------------------------------------------------------------------- image
+
+
+def _channel_average(image_path: Path, mode: str, where: str, line: int) -> np.ndarray:
+    """Per-pixel channel mean (0..255 float, top row first) with map_server's alpha rule."""
+    try:
+        with Image.open(image_path) as img:
+            img.load()
+            pixels = _pixels_0_255(img)
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as exc:
+        raise MapFormatError(
+            f"{where}:{line}: field 'image': cannot decode image {image_path}: {exc}"
+        ) from None
+    if pixels.ndim != 3 or pixels.shape[0] == 0 or pixels.shape[1] == 0:
+        raise MapFormatError(f"{where}:{line}: field 'image': image {image_path} has no pixels")
+    channels, has_alpha = pixels.shape[2], pixels.shape[2] in (2, 4)
+    if has_alpha and channels == 2:
+        # map_server's loader sees grey+alpha as RGBA with three equal colour channels
+        grey, alpha = pixels[..., 0:1], pixels[..., 1:2]
+        pixels = np.concatenate([grey, grey, grey, alpha], axis=2)
+    if has_alpha and mode != "trinary":
+        pixels = pixels[..., :-1]
+    return pixels.mean(axis=2)
+
+
+def _pixels_0_255(img: Image.Image) -> np.ndarray:
+    """(rows, cols, channels) float64 in 0..255 for any Pillow mode."""
+    if img.mode == "P":
+        img = img.convert("RGBA" if "transparency" in img.info else "RGB")
+    elif img.mode == "PA":
+        img = img.convert("RGBA")
+    elif img.mode in ("1", "CMYK", "YCbCr", "LAB", "HSV"):
+        img = img.convert("L" if img.mode == "1" else "RGB")
+    elif img.mode == "La":
+        img = img.convert("LA")
+    elif img.mode == "RGBa":
+        img = img.convert("RGBA")
+    array = np.asarray(img)
+    if img.mode.startswith("I;16") or array.dtype == np.uint16:
+        array = array.astype(np.float64) / 257.0
+    elif img.mode == "I":
+        # Pillow widens 16-bit sources (PGM maxval > 255, 16-bit PNG) to "I", scaled to 0..65535
+        array = array.astype(np.float64) / 257.0
+    elif img.mode == "F":
+        array = array.astype(np.float64)
+        if array.size and np.nanmax(array) <= 1.0:
+            array = array * 255.0
+    else:
+        array = array.astype(np.float64)
+    if array.ndim == 2:
+        array = array[:, :, None]
+    return np.clip(array, 0.0, 255.0)
