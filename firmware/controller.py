@@ -1,0 +1,55 @@
+"""Waypoint-following controller: pure pursuit on the planned path, turning in place when
+the next point is far off the heading (the paper steers with forward and angular velocity)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from firmware.params import ExplorationParams
+
+
+class PathFollower:
+    def __init__(self, params: ExplorationParams, max_v_mps: float, max_omega_radps: float) -> None:
+        self.p = params
+        self.max_v_mps = max_v_mps
+        self.max_omega_radps = max_omega_radps
+        self.path_xy = np.zeros((0, 2))
+        self._next = 0
+
+    def set_path(self, path_xy: np.ndarray) -> None:
+        self.path_xy = path_xy
+        self._next = 0
+
+    def clear(self) -> None:
+        self.set_path(np.zeros((0, 2)))
+
+    @property
+    def active(self) -> bool:
+        return self._next < len(self.path_xy)
+
+    def command(self, x_m: float, y_m: float, yaw_rad: float) -> tuple[float, float]:
+        """(v, omega) towards the look-ahead point; (0, 0) at the end of the path."""
+        pts = self.path_xy
+        # Points already within the look-ahead distance are passed.
+        while self._next < len(pts) - 1 and math.hypot(pts[self._next, 0] - x_m, pts[self._next, 1] - y_m) < self.p.lookahead_m:
+            self._next += 1
+        if self._next >= len(pts):
+            return 0.0, 0.0
+        gx, gy = pts[self._next]
+        dist = math.hypot(gx - x_m, gy - y_m)
+        if self._next == len(pts) - 1 and dist < self.p.waypoint_reached_m * 0.5:
+            self._next = len(pts)
+            return 0.0, 0.0
+        err = (math.atan2(gy - y_m, gx - x_m) - yaw_rad + math.pi) % (2 * math.pi) - math.pi
+        omega = max(-self.max_omega_radps, min(self.max_omega_radps, self.p.heading_gain * err))
+        if abs(err) > self.p.rotate_in_place_rad:
+            return 0.0, omega
+        v = self.max_v_mps * (1.0 - abs(err) / self.p.rotate_in_place_rad)
+        # Slow down for the last point so the robot does not overshoot it.
+        if self._next == len(pts) - 1:
+            v = min(v, max(0.1, dist))
+        return v, omega
+
+    def remaining(self) -> np.ndarray:
+        return self.path_xy[self._next:]

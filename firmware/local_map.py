@@ -1,0 +1,172 @@
+"""The robot's dense local map: a log-odds window of fixed size that follows the robot.
+
+Memory is fixed by the window size, whatever the area explored. What leaves the window is
+forgotten here; `KeyframeStore` keeps one binned scan per topological vertex, so a place
+that comes back into the window is restored from the scans taken there, instead of looking
+unexplored again.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from firmware import kernels
+from firmware.params import ExplorationParams
+
+
+class KeyframeStore:
+    """Scans binned by world bearing (bin b covers bearing b * 2 pi / bins), one per place.
+
+    Ranges are stored in centimetres as uint16: 720 bytes per place at 360 bins."""
+
+    def __init__(self, bins: int) -> None:
+        self.bins = bins
+        self._xy_m = np.zeros((64, 2), np.float64)
+        self._ranges_cm = np.zeros((64, bins), np.uint16)
+        self._range_max_m = np.zeros(64, np.float64)
+        self.count = 0
+
+    def add(self, x_m: float, y_m: float, ranges_by_bearing_m: np.ndarray, range_max_m: float) -> None:
+        if self.count == len(self._xy_m):
+            grow = len(self._xy_m)
+            self._xy_m = np.concatenate([self._xy_m, np.zeros((grow, 2))])
+            self._ranges_cm = np.concatenate([self._ranges_cm, np.zeros((grow, self.bins), np.uint16)])
+            self._range_max_m = np.concatenate([self._range_max_m, np.zeros(grow)])
+        k = self.count
+        self._xy_m[k] = (x_m, y_m)
+        self._ranges_cm[k] = np.clip(np.round(ranges_by_bearing_m * 100.0), 0, 65535).astype(np.uint16)
+        self._range_max_m[k] = range_max_m
+        self.count += 1
+
+    def near(self, x_lo: float, x_hi: float, y_lo: float, y_hi: float) -> np.ndarray:
+        """Indices of keyframes whose range disc may touch the rectangle."""
+        xy = self._xy_m[: self.count]
+        reach = self._range_max_m[: self.count]
+        dx = np.maximum(np.maximum(x_lo - xy[:, 0], xy[:, 0] - x_hi), 0.0)
+        dy = np.maximum(np.maximum(y_lo - xy[:, 1], xy[:, 1] - y_hi), 0.0)
+        return np.nonzero(dx * dx + dy * dy <= reach * reach)[0]
+
+    def get(self, k: int) -> tuple[float, float, np.ndarray, float]:
+        return (
+            float(self._xy_m[k, 0]),
+            float(self._xy_m[k, 1]),
+            self._ranges_cm[k].astype(np.float64) / 100.0,
+            float(self._range_max_m[k]),
+        )
+
+
+def bin_scan_by_bearing(yaw_rad: float, angle_min_rad: float, angle_increment_rad: float,
+                        ranges_m: np.ndarray, bins: int) -> np.ndarray:
+    """A robot-frame scan as ranges per world-bearing bin (shortest beam per bin; 0 = no beam)."""
+    bearings = yaw_rad + angle_min_rad + angle_increment_rad * np.arange(len(ranges_m))
+    idx = np.floor((bearings % (2 * math.pi)) / (2 * math.pi / bins) + 0.5).astype(np.int64) % bins
+    out = np.full(bins, np.inf)
+    np.minimum.at(out, idx, ranges_m.astype(np.float64))
+    out[~np.isfinite(out)] = 0.0
+    return out
+
+
+@dataclass
+class MapLayers:
+    """What planning needs, derived from the log-odds once per planning cycle."""
+
+    state: np.ndarray          # UNKNOWN / FREE / OCCUPIED per cell
+    traversable: np.ndarray    # bool: known free and radius + margin away from obstacles
+    cell_cost: np.ndarray      # >= 1, grows near walls and unknown space
+
+
+class LocalMap:
+    def __init__(self, params: ExplorationParams, x_m: float, y_m: float, keyframes: KeyframeStore) -> None:
+        self.p = params
+        self.n = params.window_cells
+        self.logodds = np.zeros((self.n, self.n), np.float32)
+        self.keyframes = keyframes
+        self.row0, self.col0 = self._anchor_for(x_m, y_m)
+
+    # --- geometry -------------------------------------------------------------------
+    def _anchor_for(self, x_m: float, y_m: float) -> tuple[int, int]:
+        res = self.p.resolution_m
+        return (int(math.floor(y_m / res)) - self.n // 2, int(math.floor(x_m / res)) - self.n // 2)
+
+    def cell_of(self, x_m: float, y_m: float) -> tuple[int, int]:
+        res = self.p.resolution_m
+        return int(math.floor(y_m / res)) - self.row0, int(math.floor(x_m / res)) - self.col0
+
+    def center_of(self, i: int, j: int) -> tuple[float, float]:
+        res = self.p.resolution_m
+        return (self.col0 + j + 0.5) * res, (self.row0 + i + 0.5) * res
+
+    def contains(self, x_m: float, y_m: float, margin_cells: int = 0) -> bool:
+        i, j = self.cell_of(x_m, y_m)
+        return margin_cells <= i < self.n - margin_cells and margin_cells <= j < self.n - margin_cells
+
+    def bounds_m(self) -> tuple[float, float, float, float]:
+        res = self.p.resolution_m
+        return (self.col0 * res, (self.col0 + self.n) * res, self.row0 * res, (self.row0 + self.n) * res)
+
+    # --- updates ------------------------------------------------------------------
+    def _fill(self, px, py, bin0, binw, ranges, range_max, region) -> None:
+        p = self.p
+        kernels.polar_fill(self.logodds, self.row0, self.col0, p.resolution_m, px, py, bin0, binw,
+                           ranges, range_max, p.logodds_hit, p.logodds_miss, p.logodds_min,
+                           p.logodds_max, *region)
+
+    def integrate_scan(self, x_m, y_m, yaw_rad, angle_min_rad, angle_increment_rad, ranges_m, range_max_m) -> None:
+        ranges = np.ascontiguousarray(ranges_m, dtype=np.float64)
+        self._fill(x_m, y_m, yaw_rad + angle_min_rad, angle_increment_rad, ranges, range_max_m,
+                   (0, self.n, 0, self.n))
+
+    def follow(self, x_m: float, y_m: float) -> bool:
+        """Re-anchor the window on the robot once it has drifted off centre; restore the
+        newly exposed cells from keyframes. Returns True if the window moved."""
+        cx, cy = self.center_of(self.n // 2, self.n // 2)
+        if max(abs(x_m - cx), abs(y_m - cy)) < self.p.recenter_distance_m:
+            return False
+        row0, col0 = self._anchor_for(x_m, y_m)
+        di, dj = row0 - self.row0, col0 - self.col0
+        shifted = np.zeros_like(self.logodds)
+        n = self.n
+        src_i = slice(max(di, 0), min(n + di, n))
+        dst_i = slice(max(-di, 0), min(n - di, n))
+        src_j = slice(max(dj, 0), min(n + dj, n))
+        dst_j = slice(max(-dj, 0), min(n - dj, n))
+        shifted[dst_i, dst_j] = self.logodds[src_i, src_j]
+        self.logodds = shifted
+        self.row0, self.col0 = row0, col0
+        # Newly exposed cells: the rows band and the columns band the shift uncovered.
+        regions = []
+        if di > 0:
+            regions.append((max(n - di, 0), n, 0, n))
+        elif di < 0:
+            regions.append((0, min(-di, n), 0, n))
+        if dj > 0:
+            regions.append((0, n, max(n - dj, 0), n))
+        elif dj < 0:
+            regions.append((0, n, 0, min(-dj, n)))
+        for region in regions:
+            self._restore(region)
+        return True
+
+    def _restore(self, region: tuple[int, int, int, int]) -> None:
+        r_lo, r_hi, c_lo, c_hi = region
+        res = self.p.resolution_m
+        x_lo, y_lo = (self.col0 + c_lo) * res, (self.row0 + r_lo) * res
+        x_hi, y_hi = (self.col0 + c_hi) * res, (self.row0 + r_hi) * res
+        binw = 2 * math.pi / self.keyframes.bins
+        for k in self.keyframes.near(x_lo, x_hi, y_lo, y_hi):
+            kx, ky, ranges, range_max = self.keyframes.get(int(k))
+            self._fill(kx, ky, 0.0, binw, ranges, range_max, region)
+
+    # --- derived layers -------------------------------------------------------------
+    def layers(self) -> MapLayers:
+        p = self.p
+        state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
+        d_occ_cells = kernels.chamfer_distance(state == kernels.OCCUPIED)
+        d_block_cells = kernels.chamfer_distance(state != kernels.FREE)
+        keep_out_cells = (p.robot_radius_m + p.safety_margin_m) / p.resolution_m
+        traversable = (state == kernels.FREE) & (d_occ_cells >= keep_out_cells)
+        near = np.clip((p.clearance_cost_m - d_block_cells * p.resolution_m) / p.clearance_cost_m, 0.0, 1.0)
+        cell_cost = (1.0 + p.clearance_cost_weight * near).astype(np.float64)
+        return MapLayers(state=state, traversable=traversable, cell_cost=cell_cost)

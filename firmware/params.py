@@ -1,0 +1,72 @@
+"""Every tunable of the explorer in one place, with units in the names.
+
+Defaults are Bayer & Faigl's Table II, "simulated scenarios" column, unless noted.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import log2
+
+
+@dataclass(frozen=True)
+class ExplorationParams:
+    # Local dense map (Table II: resolution 10 cm, local map size d_local 20 m).
+    resolution_m: float = 0.1
+    local_map_size_m: float = 20.0          # side of the square window kept around the robot
+    recenter_distance_m: float = 2.0        # shift the window when the robot is this far off centre
+    # Topological map (Table II).
+    d_build_m: float = 1.0
+    d_connect_m: float = 2.5
+    # Waypoints (Table II + eq. 3): information within d_cam, clusters, minimum entropy.
+    d_cam_m: float = 9.5
+    waypoint_cluster_radius_m: float = 3.0
+    min_cluster_entropy_bit: float = 90.0
+    artifact_types: int = 5                  # "five artifacts of different type"
+    candidate_spacing_m: float = 0.5         # waypoint candidates are evaluated on this sub-grid
+    info_rays: int = 64                      # rays cast from a candidate to count observable cells
+    # Robot body and navigation.
+    robot_radius_m: float = 0.25
+    safety_margin_m: float = 0.1             # traversable cells keep radius + margin from walls
+    clearance_cost_m: float = 1.0            # below this distance to walls/unknown, paths pay extra
+    clearance_cost_weight: float = 2.0
+    waypoint_reached_m: float = 0.5
+    lookahead_m: float = 0.6
+    rotate_in_place_rad: float = 0.8
+    heading_gain: float = 2.0
+    # A waypoint that was reached or proved unreachable is dropped for good; candidates this
+    # close to it are never generated again, which bounds the mission (finite area).
+    ban_radius_m: float = 1.5
+    stall_timeout_s: float = 20.0            # no progress towards the target for this long: drop it
+    # Log-odds occupancy update.
+    logodds_hit: float = 0.85
+    logodds_miss: float = -0.4
+    logodds_min: float = -4.0
+    logodds_max: float = 4.0
+    logodds_occupied: float = 0.5
+    logodds_free: float = -0.3
+    # Keyframes: every topological vertex keeps its scan binned to this many bearings, so a
+    # place that left the local window is restored when the robot comes back.
+    keyframe_bins: int = 360
+
+    @property
+    def entropy_per_cell_bit(self) -> float:
+        """log2(a + 1): one cell's prior entropy over 'no artifact or one of a types' (eq. 3)."""
+        return log2(self.artifact_types + 1)
+
+    @property
+    def window_cells(self) -> int:
+        return int(round(self.local_map_size_m / self.resolution_m))
+
+
+@dataclass(frozen=True)
+class TaskRates:
+    """The fixed task table's rates. The tick period is the fastest rate's period."""
+
+    lidar_hz: float = 10.0
+    control_hz: float = 20.0
+    planning_hz: float = 1.0
+    radio_hz: float = 20.0
+
+    @property
+    def tick_period_us(self) -> int:
+        return int(round(1_000_000 / max(self.lidar_hz, self.control_hz, self.planning_hz, self.radio_hz)))

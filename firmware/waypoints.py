@@ -1,0 +1,105 @@
+"""Exploration waypoints scored by expected information (Bayer & Faigl IV-A, eq. 3).
+
+e(nu) = log2(a + 1) * |{xi : ||nu - xi|| < d_cam, observable(nu, xi), xi not yet seen}|.
+Waypoints are reachable cells at least w_cl,radius apart with e >= e_min. The set W is kept
+across planning cycles: members inside the local map are re-scored and dropped once they
+fall under e_min; members outside it are remembered until the robot comes back.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from firmware import kernels
+from firmware.params import ExplorationParams
+
+
+@dataclass
+class Waypoint:
+    x_m: float
+    y_m: float
+    e_bit: float
+
+
+def unknown_box_counts(state: np.ndarray, half_cells: int) -> np.ndarray:
+    """Unknown cells within the square of half-side half_cells around every cell: an upper
+    bound of what a candidate there can observe, to skip hopeless candidates cheaply."""
+    unknown = (state == kernels.UNKNOWN).astype(np.int32)
+    sat = np.zeros((unknown.shape[0] + 1, unknown.shape[1] + 1), np.int64)
+    sat[1:, 1:] = unknown.cumsum(0).cumsum(1)
+    n_r, n_c = unknown.shape
+    i = np.arange(n_r)
+    j = np.arange(n_c)
+    i0 = np.clip(i - half_cells, 0, n_r)[:, None]
+    i1 = np.clip(i + half_cells + 1, 0, n_r)[:, None]
+    j0 = np.clip(j - half_cells, 0, n_c)[None, :]
+    j1 = np.clip(j + half_cells + 1, 0, n_c)[None, :]
+    return sat[i1, j1] - sat[i0, j1] - sat[i1, j0] + sat[i0, j0]
+
+
+class WaypointSet:
+    def __init__(self, params: ExplorationParams) -> None:
+        self.p = params
+        self.items: list[Waypoint] = []
+        self.banned: list[tuple[float, float]] = []
+
+    def is_banned(self, x_m: float, y_m: float) -> bool:
+        r2 = self.p.ban_radius_m ** 2
+        return any((x_m - bx) ** 2 + (y_m - by) ** 2 < r2 for bx, by in self.banned)
+
+    def ban(self, x_m: float, y_m: float) -> None:
+        """Drop every waypoint near this point for good."""
+        self.banned.append((x_m, y_m))
+        r2 = self.p.ban_radius_m ** 2
+        self.items = [w for w in self.items if (w.x_m - x_m) ** 2 + (w.y_m - y_m) ** 2 >= r2]
+
+    def update(self, local_map, state: np.ndarray, reachable: np.ndarray) -> None:
+        """One planning cycle: re-score members inside the map, find new ones, merge."""
+        p = self.p
+        res = p.resolution_m
+        n = state.shape[0]
+        max_range_cells = p.d_cam_m / res
+        cells_needed = p.min_cluster_entropy_bit / p.entropy_per_cell_bit
+        margin = 2
+        # Re-score remembered waypoints that are back inside the local map.
+        inside = []
+        for w in self.items:
+            i, j = local_map.cell_of(w.x_m, w.y_m)
+            if margin <= i < n - margin and margin <= j < n - margin:
+                inside.append((w, i, j))
+        if inside:
+            ci = np.array([t[1] for t in inside], np.int64)
+            cj = np.array([t[2] for t in inside], np.int64)
+            counts = kernels.observable_unknown(state, ci, cj, p.info_rays, max_range_cells)
+            for (w, _, _), c in zip(inside, counts):
+                w.e_bit = float(c) * p.entropy_per_cell_bit
+            self.items = [w for w in self.items if w.e_bit >= p.min_cluster_entropy_bit]
+        # New candidates: reachable cells on a coarse sub-grid with enough unknown around.
+        step = max(1, int(round(p.candidate_spacing_m / res)))
+        sub = np.zeros_like(reachable)
+        sub[step // 2::step, step // 2::step] = True
+        boxes = unknown_box_counts(state, int(max_range_cells))
+        cand = np.argwhere(reachable & sub & (boxes >= cells_needed))
+        if len(cand) == 0:
+            return
+        counts = kernels.observable_unknown(state, cand[:, 0].astype(np.int64), cand[:, 1].astype(np.int64),
+                                            p.info_rays, max_range_cells)
+        e_bit = counts * p.entropy_per_cell_bit
+        # Highest information first; ties by cell index so the choice is a pure function.
+        order = np.lexsort((cand[:, 1], cand[:, 0], -e_bit))
+        r2 = p.waypoint_cluster_radius_m ** 2
+        for k in order:
+            if e_bit[k] < p.min_cluster_entropy_bit:
+                break
+            x, y = local_map.center_of(int(cand[k, 0]), int(cand[k, 1]))
+            if self.is_banned(x, y):
+                continue
+            if any((w.x_m - x) ** 2 + (w.y_m - y) ** 2 < r2 for w in self.items):
+                continue
+            self.items.append(Waypoint(x, y, float(e_bit[k])))
+
+    def total_entropy_near(self, x_m: float, y_m: float, radius_m: float) -> float:
+        r2 = radius_m * radius_m
+        return float(sum(w.e_bit for w in self.items if (w.x_m - x_m) ** 2 + (w.y_m - y_m) ** 2 <= r2))
+
