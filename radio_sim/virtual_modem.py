@@ -1,0 +1,302 @@
+"""Virtual RN2483 modems on real pseudo-terminals, all on one shared Channel.
+
+Each modem is a pty pair: the client (a real modem driver, pyserial, minicom) opens the
+slave path; the bank reads command lines from the master, answers them through the pure
+state machine in radio_sim.rn2483, and writes the module's asynchronous lines
+(`radio_tx_ok`, `radio_rx  <HEX>`, `radio_err`) when the Channel or a module timer says so.
+
+Two ways to drive time (the bank itself never reads a clock):
+
+- Lockstep (`ModemBank(...)` then `advance_to(now_us)`): the mission runner owns time.
+  A service thread answers commands at the bank's current time, which moves only in
+  `advance_to`. Why this has no races: the drivers (hal.rn2483.Rn2483Modem) wait for the
+  reply to every command they send, so when the runner calls `advance_to` between two
+  firmware ticks every command has already been served; a lock keeps `advance_to` and the
+  service thread apart anyway. Lines written by `advance_to` go into the same ordered byte
+  stream before any later reply, so a driver that ends each poll with a query and reads up
+  to its reply (a barrier) has seen every event up to the current time, whatever the
+  kernel's pty scheduling does.
+- Wall clock (`serve(now_us_fn, should_stop)`): for `lorascout modem`. The caller passes
+  the clock; the loop sleeps in select() until a command arrives or the Channel or a
+  module timer is due.
+
+The bank keeps each slave open itself, so a client that closes and reopens the device
+does not make the master report end-of-file, and writes never block: output waits in a
+per-modem buffer until the pty takes it.
+"""
+from __future__ import annotations
+
+import errno
+import os
+import select
+import termios
+import threading
+import tty
+from collections.abc import Callable, Sequence
+
+from hal.lora import RadioProfile
+from radio_sim.rn2483 import PRIVATE_SYNC_WORD, Rn2483, on_air_settings
+
+_READ_CHUNK = 4096
+_MAX_PENDING_INPUT = 4096   # bytes of an unterminated line kept before it is answered as invalid
+
+
+class _ChannelPort:
+    """Binds one modem to its node id on the shared Channel."""
+
+    def __init__(self, channel, node_id: int):
+        self._channel = channel
+        self._node_id = node_id
+
+    def transmit(self, payload: bytes, now_us: int) -> int | None:
+        return self._channel.transmit(self._node_id, payload, now_us)
+
+    def set_listening(self, listening: bool, now_us: int) -> None:
+        self._channel.set_listening(self._node_id, listening, now_us)
+
+
+class _Pty:
+    def __init__(self, baudrate: int):
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        attrs = termios.tcgetattr(self.slave)
+        speed = getattr(termios, f"B{baudrate}")
+        attrs[4] = attrs[5] = speed                       # nominal 57600 8N1: ptys ignore the rate
+        attrs[2] = (attrs[2] & ~(termios.CSIZE | termios.PARENB | termios.CSTOPB)) | termios.CS8 | termios.CLOCAL | termios.CREAD
+        termios.tcsetattr(self.slave, termios.TCSANOW, attrs)
+        os.set_blocking(self.master, False)
+        self.path = os.ttyname(self.slave)
+        self.inbuf = bytearray()
+        self.outbuf = bytearray()
+
+    def close(self) -> None:
+        for fd in (self.master, self.slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+
+class ModemBank:
+    """N virtual RN2483 modems sharing `channel`, one per node id.
+
+    The caller attaches the node ids to the Channel (positions are its business). In
+    lockstep mode (`lockstep=True`, the default) a daemon thread serves commands at once;
+    the runner moves time with `advance_to`. With `lockstep=False` nothing runs until the
+    caller calls `serve`.
+    """
+
+    def __init__(self, channel, profile: RadioProfile, node_ids: Sequence[int], *,
+                 lockstep: bool = True, start_us: int = 0, sync_word: int = PRIVATE_SYNC_WORD,
+                 baudrate: int = 57600):
+        if len(set(node_ids)) != len(node_ids):
+            raise ValueError(f"node_ids must be distinct, got {list(node_ids)}")
+        self._channel = channel
+        self._on_air = on_air_settings(profile, sync_word)
+        self.node_ids = tuple(node_ids)
+        self.modems = [Rn2483(n, _ChannelPort(channel, n), self._on_air) for n in self.node_ids]
+        self._ptys: list[_Pty] = []
+        try:
+            for _ in self.node_ids:
+                self._ptys.append(_Pty(baudrate))
+        except BaseException:
+            self._close_fds()
+            raise
+        self._by_master = {p.master: i for i, p in enumerate(self._ptys)}
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
+        self._lock = threading.RLock()
+        self._now_us = start_us
+        self._closed = False
+        self.commands_served = 0
+        self._thread: threading.Thread | None = None
+        if lockstep:
+            self._thread = threading.Thread(target=self._service_thread, name="rn2483-bank", daemon=True)
+            self._thread.start()
+
+    # -- public ------------------------------------------------------------------
+    @property
+    def paths(self) -> list[str]:
+        """Device paths of the modems, in node id order; open them with pyserial."""
+        return [p.path for p in self._ptys]
+
+    @property
+    def now_us(self) -> int:
+        return self._now_us
+
+    def advance_to(self, now_us: int) -> None:
+        """Move the bank and the Channel to `now_us`: frames that ended and module timers
+        that fell due are resolved in time order and their lines queued to the clients."""
+        with self._lock:
+            if now_us < self._now_us:
+                raise ValueError(f"time runs forwards: advance_to({now_us}) after {self._now_us}")
+            self._step_to(now_us)
+            self._flush_all()
+            left_over = any(p.outbuf for p in self._ptys)
+        if left_over and self._thread is not None:
+            self._wake()   # the service thread writes the rest when the pty has room
+
+    def next_due_us(self) -> int | None:
+        """The earliest time at which the bank has something to do, or None."""
+        with self._lock:
+            times = [m.next_deadline_us() for m in self.modems]
+            times.append(self._channel.next_event_us())
+            times = [t for t in times if t is not None]
+            return min(times) if times else None
+
+    def serve(self, now_us_fn: Callable[[], int], should_stop: Callable[[], bool],
+              max_sleep_s: float = 0.5) -> None:
+        """Wall-clock service loop for `lorascout modem`: returns when should_stop() is true
+        (call `wake()` from a signal handler to make it look promptly)."""
+        if self._thread is not None:
+            raise RuntimeError("serve() is for a bank made with lockstep=False")
+        while not should_stop() and not self._closed:
+            now_us = now_us_fn()
+            self.advance_to(max(now_us, self._now_us))
+            due_us = self.next_due_us()
+            timeout_s = max_sleep_s
+            if due_us is not None:
+                timeout_s = min(max_sleep_s, max(0.0, (due_us - now_us_fn()) / 1e6))
+            self._service_once(timeout_s, now_us_fn)
+
+    def wake(self) -> None:
+        self._wake()
+
+    def close(self) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        self._wake()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=2.0)
+        self._close_fds()
+
+    def __enter__(self) -> ModemBank:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- time ---------------------------------------------------------------------
+    def _step_to(self, now_us: int) -> None:
+        # Module timers may end a reception before a frame that ends later: walk the
+        # deadlines in order so the Channel sees each `stop listening` at its own time.
+        while True:
+            due = [m.next_deadline_us() for m in self.modems]
+            due = [t for t in due if t is not None and t <= now_us]
+            if not due:
+                break
+            t = min(due)
+            self._channel.advance_to(t)
+            self._now_us = max(self._now_us, t)
+            self._dispatch_channel_events()
+            for i, m in enumerate(self.modems):
+                self._emit(i, m.expire(t))
+        self._channel.advance_to(now_us)
+        self._now_us = now_us
+        self._dispatch_channel_events()
+
+    def _dispatch_channel_events(self) -> None:
+        for i, (node_id, m) in enumerate(zip(self.node_ids, self.modems)):
+            for event in self._channel.take_events(node_id):
+                self._emit(i, m.deliver(event, self._now_us))
+
+    # -- bytes ----------------------------------------------------------------------
+    def _emit(self, i: int, lines: list[str]) -> None:
+        if lines:
+            self._ptys[i].outbuf += "".join(line + "\r\n" for line in lines).encode("ascii")
+
+    def _flush_all(self) -> None:
+        for p in self._ptys:
+            self._flush(p)
+
+    def _flush(self, p: _Pty) -> None:
+        while p.outbuf:
+            try:
+                n = os.write(p.master, p.outbuf)
+            except BlockingIOError:
+                return
+            except OSError as e:
+                if e.errno in (errno.EIO, errno.EBADF):
+                    p.outbuf.clear()
+                    return
+                raise
+            del p.outbuf[:n]
+
+    def _handle_input(self, i: int, now_us: int) -> None:
+        p = self._ptys[i]
+        try:
+            data = os.read(p.master, _READ_CHUNK)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError as e:
+            if e.errno == errno.EIO:
+                return
+            raise
+        p.inbuf += data
+        while True:
+            nl = p.inbuf.find(b"\n")
+            if nl < 0:
+                break
+            raw = bytes(p.inbuf[:nl]).rstrip(b"\r")
+            del p.inbuf[: nl + 1]
+            line = raw.decode("ascii", errors="replace")
+            self._emit(i, self.modems[i].command(line, now_us))
+            self.commands_served += 1
+        if len(p.inbuf) > _MAX_PENDING_INPUT:
+            # The module's line buffer overflows on an endless line: it answers invalid_param.
+            p.inbuf.clear()
+            self._emit(i, ["invalid_param"])
+
+    def _service_once(self, timeout_s: float | None, now_us_fn: Callable[[], int] | None = None) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            readers = [p.master for p in self._ptys] + [self._wake_r]
+            writers = [p.master for p in self._ptys if p.outbuf]
+        try:
+            readable, writable, _ = select.select(readers, writers, [], timeout_s)
+        except (OSError, ValueError):
+            if self._closed:
+                return
+            raise
+        with self._lock:
+            if self._closed:
+                return
+            if self._wake_r in readable:
+                try:
+                    while os.read(self._wake_r, 512):
+                        pass
+                except BlockingIOError:
+                    pass
+            if now_us_fn is not None:
+                # Wall clock: resolve what fell due before answering, so a command sees the
+                # air as it is now.
+                self._step_to(max(now_us_fn(), self._now_us))
+            for fd in readable:
+                i = self._by_master.get(fd)
+                if i is not None:
+                    self._handle_input(i, self._now_us)
+            self._flush_all()
+
+    def _service_thread(self) -> None:
+        while not self._closed:
+            self._service_once(None)
+
+    def _wake(self) -> None:
+        try:
+            os.write(self._wake_w, b"\0")
+        except (BlockingIOError, OSError):
+            pass
+
+    def _close_fds(self) -> None:
+        for p in self._ptys:
+            p.close()
+        for fd in (getattr(self, "_wake_r", None), getattr(self, "_wake_w", None)):
+            if fd is not None:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
