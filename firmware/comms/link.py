@@ -1,0 +1,270 @@
+"""Link layer: record queue -> aggregated frames -> radio, with the law's airtime budget.
+
+Pure and deterministic: time enters only as `now_us` arguments, the radio only as the HAL
+RadioModem passed to `service`. One instance per robot.
+
+Per `service(now_us, radio)` call:
+1. drain radio events: decode each received frame, count its reason, drop duplicates by
+   (sender, seq) with a 64-frame RFC 1982 window per sender (256 senders at most, so memory
+   is bounded), optionally queue it for relay (managed flood: hop limit in the header,
+   duplicates never relayed), and hand its records to `received()`.
+2. if the radio is idle and something waits: build one frame (relays first, else the
+   highest-priority records that fit `profile.max_payload_bytes`, grouped by type), and send
+   it only if (a) the sub-band airtime budget holds in the duty-cycle window ending when this
+   frame would end (the worst window, see `_duty_cycle_ok`) and (b) the optional byte-rate
+   token bucket has the bytes. Otherwise it waits, and the reason is counted.
+"""
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Hashable, Mapping
+from fractions import Fraction
+from typing import Any
+
+from firmware.comms.codec import REASONS, Reason, encode
+from firmware.comms.frame import (MAX_FRAME_BYTES, MAX_HOPS, MAX_RECORDS_PER_GROUP, SEQ_MODULUS,
+                                  decode_frame, encode_frame_records, frame_size_bytes, seq_newer,
+                                  with_hops)
+from firmware.comms.schema import BY_NAME, record_type
+from hal.interfaces import RadioModem
+from hal.lora import RadioProfile
+from hal.samples import RadioRxFrame, RadioTxDone
+
+DEDUP_WINDOW = 64
+
+
+def counter_names(sub_band: str) -> tuple[str, ...]:
+    """Every counter a LinkLayer keeps, all present from the start (zero)."""
+    return (
+        "sent.frames", "sent.bytes", "sent.records", "relayed", f"airtime_us.{sub_band}",
+        "deferred.duty_cycle", "deferred.rate_cap", "deferred.radio_busy",
+        "dropped.queue_full", "dropped.too_large", "dropped.relay_queue_full", "superseded",
+        *(f"received.{r.value}" for r in REASONS),
+        "received.duplicate", "received.own", "received.records",
+        "tx_done.ok", "tx_done.failed",
+    )
+
+
+class LinkLayer:
+    def __init__(self, node_id: int, profile: RadioProfile, relay_hop_limit: int = 0,
+                 byte_rate_cap_Bps: float | None = None, queue_limit: int = 64,
+                 relay_queue_limit: int = 8, first_seq: int = 0) -> None:
+        """relay_hop_limit: hops left written into our frames, and whether we relay others'
+        (0 = off). byte_rate_cap_Bps: None takes profile.byte_rate_cap_Bps; float('inf')
+        disables a profile's cap."""
+        if not 0 <= node_id <= 255:
+            raise ValueError(f"node_id {node_id} outside [0, 255]")
+        if not 0 <= relay_hop_limit <= MAX_HOPS:
+            raise ValueError(f"relay_hop_limit {relay_hop_limit} outside [0, {MAX_HOPS}]")
+        if queue_limit < 1 or relay_queue_limit < 1:
+            raise ValueError("queue limits must be >= 1")
+        self.node_id = node_id
+        self.profile = profile
+        self.relay_hop_limit = relay_hop_limit
+        self.queue_limit = queue_limit
+        self.relay_queue_limit = relay_queue_limit
+        self.max_frame_bytes = min(profile.max_payload_bytes, MAX_FRAME_BYTES)
+        cap = profile.byte_rate_cap_Bps if byte_rate_cap_Bps is None else byte_rate_cap_Bps
+        self._rate_Bps: Fraction | None = (
+            None if cap is None or cap == float("inf") else Fraction(cap))
+        if self._rate_Bps is not None and self._rate_Bps <= 0:
+            raise ValueError(f"byte_rate_cap_Bps must be > 0, got {cap}")
+        self._bucket_cap = Fraction(self.max_frame_bytes)   # one full frame of burst
+        self._tokens = self._bucket_cap
+        self._tokens_at_us: int | None = None
+        self._budget_us = (None if profile.duty_cycle is None
+                           else round(profile.duty_cycle * profile.duty_cycle_window_us))
+        self._tx_log: deque[tuple[int, int]] = deque()   # own (start_us, end_us), this sub-band
+        self._seq = first_seq % SEQ_MODULUS
+        self._order = 0
+        # queue entries: [priority, order, type name, record bytes, key]
+        self._queue: list[list[Any]] = []
+        self._relay: deque[bytes] = deque()
+        self._seen: dict[int, list[int]] = {}             # sender -> [highest seq, window mask]
+        self._rx: list[tuple[int, str, dict[str, int]]] = []
+        self._airtime_key = f"airtime_us.{profile.sub_band}"
+        self._counters = dict.fromkeys(counter_names(profile.sub_band), 0)
+
+    # ---- firmware-facing ---------------------------------------------------------------
+
+    def enqueue(self, rtype: str, values: Mapping[str, Any] | Any, priority: int = 0,
+                key: Hashable | None = None) -> bool:
+        """Queue one record. Higher priority goes first; equal priority first come first.
+        With `key`, a queued record with the same key is replaced (a newer heartbeat makes
+        the old one worthless). False if dropped: too large for a frame, or the queue is full
+        of records at least as important. ValueError for values out of range."""
+        rt = record_type(rtype)
+        data = encode(rt, values)
+        if frame_size_bytes({rt.name: 1}) > self.max_frame_bytes:
+            self._counters["dropped.too_large"] += 1
+            return False
+        if key is not None:
+            for i, e in enumerate(self._queue):
+                if e[4] == key:
+                    del self._queue[i]
+                    self._counters["superseded"] += 1
+                    break
+        if len(self._queue) >= self.queue_limit:
+            # Evict the least important, oldest record, unless the newcomer is no better.
+            victim = min(range(len(self._queue)), key=lambda i: (self._queue[i][0], self._queue[i][1]))
+            self._counters["dropped.queue_full"] += 1
+            if self._queue[victim][0] >= priority:
+                return False
+            del self._queue[victim]
+        self._queue.append([priority, self._order, rt.name, data, key])
+        self._order += 1
+        return True
+
+    def received(self) -> list[tuple[int, str, dict[str, int]]]:
+        """Records received since the last call: (frame sender id, record type, values)."""
+        out, self._rx = self._rx, []
+        return out
+
+    @property
+    def counters(self) -> dict[str, int]:
+        return dict(self._counters)
+
+    @property
+    def queue_len(self) -> int:
+        return len(self._queue)
+
+    @property
+    def next_seq(self) -> int:
+        return self._seq
+
+    def duty_cycle_headroom_us(self, now_us: int) -> int | None:
+        """Airtime still allowed in the window ending now (None: no duty-cycle limit)."""
+        if self._budget_us is None:
+            return None
+        return self._budget_us - self._window_use_us(now_us)
+
+    def service(self, now_us: int, radio: RadioModem) -> None:
+        for event in radio.poll():
+            if isinstance(event, RadioRxFrame):
+                self._on_frame(event.payload)
+            elif isinstance(event, RadioTxDone):
+                self._counters["tx_done.ok" if event.ok else "tx_done.failed"] += 1
+        self._refill(now_us)
+        if not self._queue and not self._relay:
+            return
+        if radio.busy():
+            self._counters["deferred.radio_busy"] += 1
+            return
+        relay = bool(self._relay)
+        if relay:
+            frame, taken = self._relay[0], []
+        else:
+            frame, taken = self._build_frame()
+        airtime_us = self.profile.airtime_us(len(frame))
+        if not self._duty_cycle_ok(now_us, airtime_us):
+            self._counters["deferred.duty_cycle"] += 1
+            return
+        if self._rate_Bps is not None and self._tokens < len(frame):
+            self._counters["deferred.rate_cap"] += 1
+            return
+        if not radio.transmit(frame):
+            self._counters["deferred.radio_busy"] += 1
+            return
+        if relay:
+            self._relay.popleft()
+            self._counters["relayed"] += 1
+        else:
+            taken_ids = {id(e) for e in taken}
+            self._queue = [e for e in self._queue if id(e) not in taken_ids]
+            self._seq = (self._seq + 1) % SEQ_MODULUS
+            self._counters["sent.records"] += len(taken)
+        if self._rate_Bps is not None:
+            self._tokens -= len(frame)
+        self._tx_log.append((now_us, now_us + airtime_us))
+        self._counters["sent.frames"] += 1
+        self._counters["sent.bytes"] += len(frame)
+        self._counters[self._airtime_key] += airtime_us
+
+    # ---- internals ---------------------------------------------------------------------
+
+    def _build_frame(self) -> tuple[bytes, list[list[Any]]]:
+        counts: dict[str, int] = {}
+        size = frame_size_bytes({})
+        taken: list[list[Any]] = []
+        for e in sorted(self._queue, key=lambda e: (-e[0], e[1])):
+            n = counts.get(e[2], 0)
+            grow = len(e[3]) + (1 if n % MAX_RECORDS_PER_GROUP == 0 else 0)
+            if size + grow <= self.max_frame_bytes:
+                size += grow
+                counts[e[2]] = n + 1
+                taken.append(e)
+        # Group by type (fewest tags); keep priority order inside a type.
+        ordered = sorted(taken, key=lambda e: BY_NAME[e[2]].code)
+        frame = encode_frame_records(self.node_id, self._seq, [(e[2], e[3]) for e in ordered],
+                                     hops_left=self.relay_hop_limit)
+        return frame, taken
+
+    def _window_use_us(self, window_end_us: int) -> int:
+        start = window_end_us - self.profile.duty_cycle_window_us
+        return sum(max(0, min(e, window_end_us) - max(s, start)) for s, e in self._tx_log)
+
+    def _duty_cycle_ok(self, now_us: int, airtime_us: int) -> bool:
+        """ETSI: own transmit time in ANY window of length W must stay <= duty_cycle * W.
+        Windows ending before now already held. For a window ending at t in [now, now+a],
+        the new frame adds t - now while past frames leave at most as fast, so the sum grows;
+        for t beyond now+a the new frame adds a constant and past frames only leave. So the
+        window ending at now + airtime is the worst one: checking it is exact."""
+        if self._budget_us is None:
+            return True
+        horizon = now_us - self.profile.duty_cycle_window_us
+        while self._tx_log and self._tx_log[0][1] <= horizon:
+            self._tx_log.popleft()
+        return self._window_use_us(now_us + airtime_us) + airtime_us <= self._budget_us
+
+    def _refill(self, now_us: int) -> None:
+        if self._rate_Bps is None:
+            return
+        if self._tokens_at_us is not None and now_us > self._tokens_at_us:
+            gained = self._rate_Bps * (now_us - self._tokens_at_us) / 1_000_000
+            self._tokens = min(self._bucket_cap, self._tokens + gained)
+        if self._tokens_at_us is None or now_us > self._tokens_at_us:
+            self._tokens_at_us = now_us
+
+    def _is_duplicate(self, sender: int, seq: int) -> bool:
+        """Check and mark (sender, seq). A sequence number far behind the window means the
+        sender restarted: accept it and restart the window."""
+        st = self._seen.get(sender)
+        if st is None:
+            self._seen[sender] = [seq, 1]
+            return False
+        hi, mask = st
+        if seq_newer(seq, hi):
+            shift = (seq - hi) % SEQ_MODULUS
+            st[0] = seq
+            st[1] = ((mask << shift) | 1) & ((1 << DEDUP_WINDOW) - 1) if shift < DEDUP_WINDOW else 1
+            return False
+        back = (hi - seq) % SEQ_MODULUS
+        if back >= DEDUP_WINDOW:
+            self._seen[sender] = [seq, 1]
+            return False
+        if mask >> back & 1:
+            return True
+        st[1] = mask | (1 << back)
+        return False
+
+    def _on_frame(self, payload: bytes) -> None:
+        res = decode_frame(payload)
+        if res.frame is None:
+            self._counters[f"received.{res.reason.value}"] += 1
+            return
+        f = res.frame
+        if f.sender_id == self.node_id:
+            self._counters["received.own"] += 1
+            return
+        if self._is_duplicate(f.sender_id, f.seq):
+            self._counters["received.duplicate"] += 1
+            return
+        self._counters[f"received.{Reason.OK.value}"] += 1
+        self._counters["received.records"] += len(f.records)
+        for name, values in f.records:
+            self._rx.append((f.sender_id, name, values))
+        if self.relay_hop_limit > 0 and f.hops_left > 0:
+            if len(self._relay) >= self.relay_queue_limit:
+                self._counters["dropped.relay_queue_full"] += 1
+            else:
+                self._relay.append(with_hops(bytes(payload), f.hops_left - 1, min(MAX_HOPS, f.hops_taken + 1)))
