@@ -1,0 +1,317 @@
+"""The shared LoRa channel every simulated or emulated modem transmits into.
+
+Model (LoRaSim, Bor et al. 2016, `full_collision` mode; ns-3 lorawan):
+- A frame occupies the air for `RadioProfile.airtime_us(len(payload))`, from the call to
+  `transmit` on. All nodes of one channel share its profile (frequency, SF, BW), so every
+  pair of overlapping frames is a candidate collision.
+- At each receiver, two overlapping frames E (earlier start) and L collide in time unless the
+  overlap ends before the last 5 of L's preamble symbols, i.e. E.end_us <= L.start_us +
+  (preamble_symbols - 5) * T_sym (L may lose its first 3 of 8 preamble symbols). As in
+  LoRaSim, a pair that does not collide in time harms neither frame. A pair that collides in
+  time is judged by power at that receiver: under 6 dB apart both are lost, otherwise the
+  weaker is lost (capture). An interferer below the receiver's sensitivity is ignored.
+- Fates at a receiver, first match wins: half_duplex (the receiver transmitted during any
+  part of the frame), out_of_range (RSSI below sensitivity), not_listening (the receiver was
+  not armed from the frame's start to its end), collided, then injected faults
+  (injected_loss, corrupted), else received.
+- Reception is one-shot like the RN2483's `radio rx 0`: a delivered frame (received or
+  corrupted) disarms the receiver until `set_listening(node, True)`. Transmitting disarms it
+  too (the RN2483 leaves receive mode to send). Nodes are armed when attached.
+- The `ideal` profile (Bayer & Faigl): every other attached node receives every frame,
+  regardless of range, walls, collisions, half duplex or arming; injected faults, if any
+  were asked for, still apply. The armed state is tracked the same way so modem emulators
+  behave identically on top of it.
+
+Time is whatever `now_us` the caller passes, non-decreasing across all calls. Every call that
+takes a time first resolves the frames that ended at or before it, so the receiver state a
+call changes is always the state at that time.
+
+Random streams: injected faults draw from `stream(seed, "radio.channel")`, three uniforms
+per (frame, receiver) in resolution order (end time, sender id) then receiver id, plus the
+bit positions of each corruption; shadowing draws from `stream(seed, "radio.shadowing")`,
+so turning shadowing on does not move the faults.
+"""
+from __future__ import annotations
+
+import heapq
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Callable
+
+from hal.lora import RadioProfile
+from hal.samples import RadioEvent, RadioRxFrame, RadioTxDone
+from radio_sim.air_log import (
+    COLLIDED, CORRUPTED, FATES, HALF_DUPLEX, INJECTED_LOSS, NOT_LISTENING, OUT_OF_RANGE, RECEIVED,
+    AirFrame, Reception,
+)
+from radio_sim.faults import NO_FAULT, FaultParams, draw_faults, flip_bits
+from radio_sim.propagation import PropagationParams, WallCounter, sensitivity_dbm
+from world_sim.occupancy_map import OccupancyMap
+from world_sim.seeding import stream
+
+CAPTURE_THRESHOLD_DB = 6.0
+# Preamble symbols a receiver needs to lock on; the earlier ones may be lost to an overlap.
+PREAMBLE_SYMBOLS_NEEDED = 5
+
+_FRAME_END = 0
+_DUPLICATE_DUE = 1
+
+
+@dataclass(eq=False)
+class _Frame:
+    seq: int
+    sender_id: int
+    start_us: int
+    end_us: int
+    payload: bytes
+    # receiver id -> (rssi_dbm, snr_db), ascending receiver id; every node attached at the start
+    link: dict[int, tuple[float, float]]
+
+
+@dataclass(eq=False)
+class _Node:
+    node_id: int
+    position_fn: Callable[[], tuple[float, float]]
+    listen_since_us: int | None      # armed since this time; None = not armed
+    tx_frame: _Frame | None = None
+    events: list[RadioEvent] = field(default_factory=list)
+    # duplicates that came due while the node was not armed: (payload, rssi_dbm, snr_db)
+    waiting_duplicates: deque = field(default_factory=deque)
+
+
+class Channel:
+    def __init__(
+        self,
+        profile: RadioProfile,
+        seed: int,
+        occupancy: OccupancyMap | None = None,
+        propagation: PropagationParams = PropagationParams(),
+        faults: FaultParams = FaultParams(),
+    ) -> None:
+        self.profile = profile
+        self.seed = int(seed)
+        self.occupancy = occupancy
+        self.propagation = propagation
+        self.faults = faults
+        self.sensitivity_dbm = sensitivity_dbm(profile.modulation)
+        self.noise_floor_dbm = propagation.noise_floor_dbm(profile.modulation.bw_hz)
+        self.symbol_time_us: Fraction = profile.modulation.symbol_time_us
+        self.preamble_grace_us: Fraction = (
+            max(profile.modulation.preamble_symbols - PREAMBLE_SYMBOLS_NEEDED, 0) * self.symbol_time_us
+        )
+        self._walls = WallCounter(occupancy) if occupancy is not None else None
+        self._fault_rng = stream(self.seed, "radio.channel")
+        self._shadow_rng = stream(self.seed, "radio.shadowing")
+        self._nodes: dict[int, _Node] = {}
+        self._heap: list[tuple[int, int, int, int, object]] = []
+        self._window: list[_Frame] = []   # frames that may still overlap an unresolved one
+        self._unresolved: dict[int, _Frame] = {}
+        self._seq = 0
+        self._now_us = 0
+        self._sinks: list[Callable[[AirFrame], None]] = []
+        self._counts: dict[str, int] = {f: 0 for f in FATES}
+        self._counts.update(frames=0, duplicates_delivered=0)
+
+    # -- set-up ------------------------------------------------------------------------------
+
+    def attach(self, node_id: int, position_fn: Callable[[], tuple[float, float]]) -> None:
+        if node_id in self._nodes:
+            raise ValueError(f"node {node_id} is already attached to the channel")
+        # Armed from "now": a frame already on the air has no reception record for it.
+        self._nodes[node_id] = _Node(int(node_id), position_fn, listen_since_us=self._now_us)
+
+    def add_sink(self, fn: Callable[[AirFrame], None]) -> None:
+        self._sinks.append(fn)
+
+    # -- the contract ------------------------------------------------------------------------
+
+    def transmit(self, node_id: int, payload: bytes, now_us: int) -> int | None:
+        self.advance_to(now_us)
+        node = self._node(node_id)
+        payload = bytes(payload)
+        if node.tx_frame is not None or len(payload) > self.profile.max_payload_bytes:
+            return None
+        end_us = now_us + self.profile.airtime_us(len(payload))
+        frame = _Frame(self._seq, node.node_id, now_us, end_us, payload, self._links_from(node))
+        self._seq += 1
+        node.tx_frame = frame
+        node.listen_since_us = None
+        self._window.append(frame)
+        self._unresolved[frame.seq] = frame
+        heapq.heappush(self._heap, (end_us, _FRAME_END, node.node_id, frame.seq, frame))
+        return end_us
+
+    def set_listening(self, node_id: int, listening: bool, now_us: int) -> None:
+        self.advance_to(now_us)
+        node = self._node(node_id)
+        if not listening:
+            node.listen_since_us = None
+            return
+        if node.tx_frame is not None:
+            raise ValueError(
+                f"node {node_id} cannot arm its receiver at {now_us} us: it is transmitting "
+                f"until {node.tx_frame.end_us} us (an RN2483 answers 'busy')"
+            )
+        if node.listen_since_us is not None:
+            return  # already armed: keep the original arming time
+        if node.waiting_duplicates:
+            payload, rssi_dbm, snr_db = node.waiting_duplicates.popleft()
+            self._deliver(node, RadioRxFrame(now_us, payload, rssi_dbm, snr_db))
+            self._counts["duplicates_delivered"] += 1
+            return
+        node.listen_since_us = now_us
+
+    def advance_to(self, now_us: int) -> None:
+        if now_us < self._now_us:
+            raise ValueError(f"channel time went backwards: {now_us} us after {self._now_us} us")
+        self._now_us = now_us
+        heap = self._heap
+        while heap and heap[0][0] <= now_us:
+            _, kind, _, _, item = heapq.heappop(heap)
+            if kind == _FRAME_END:
+                self._resolve(item)  # type: ignore[arg-type]
+            else:
+                self._duplicate_due(*item)  # type: ignore[misc]
+
+    def take_events(self, node_id: int) -> list[RadioEvent]:
+        node = self._node(node_id)
+        events, node.events = node.events, []
+        return events
+
+    def next_event_us(self) -> int | None:
+        return self._heap[0][0] if self._heap else None
+
+    # -- queries -----------------------------------------------------------------------------
+
+    @property
+    def now_us(self) -> int:
+        """The latest time the channel was advanced to."""
+        return self._now_us
+
+    @property
+    def node_ids(self) -> tuple[int, ...]:
+        return tuple(self._nodes)
+
+    def transmitting(self, node_id: int) -> bool:
+        """Whether the node's frame is still on the air at the channel's current time
+        (call advance_to first to ask about a later time)."""
+        return self._node(node_id).tx_frame is not None
+
+    def tx_end_us(self, node_id: int) -> int | None:
+        frame = self._node(node_id).tx_frame
+        return None if frame is None else frame.end_us
+
+    def listening(self, node_id: int) -> bool:
+        return self._node(node_id).listen_since_us is not None
+
+    def counters(self) -> dict[str, int]:
+        """Receptions per fate over all finished frames, plus `frames` (finished frames) and
+        `duplicates_delivered` (injected duplicate copies handed to a receiver)."""
+        return dict(self._counts)
+
+    # -- internals ---------------------------------------------------------------------------
+
+    def _node(self, node_id: int) -> _Node:
+        try:
+            return self._nodes[node_id]
+        except KeyError:
+            raise KeyError(f"node {node_id} is not attached to the channel (attached: {sorted(self._nodes)})") from None
+
+    def _links_from(self, sender: _Node) -> dict[int, tuple[float, float]]:
+        """RSSI and SNR at every other attached node, fixed at the frame's start (robots move
+        centimetres during a frame)."""
+        sx, sy = sender.position_fn()
+        params = self.propagation
+        links: dict[int, tuple[float, float]] = {}
+        for rid in sorted(self._nodes):
+            if rid == sender.node_id:
+                continue
+            rx, ry = self._nodes[rid].position_fn()
+            walls = self._walls.walls_between((sx, sy), (rx, ry)) if self._walls is not None else 0
+            rssi_dbm = self.profile.tx_power_dbm - params.path_loss_db(math.hypot(rx - sx, ry - sy), walls)
+            if params.shadowing_std_db > 0:
+                rssi_dbm -= float(self._shadow_rng.normal(0.0, params.shadowing_std_db))
+            links[rid] = (rssi_dbm, rssi_dbm - self.noise_floor_dbm)
+        return links
+
+    def _physical_fate(self, frame: _Frame, rid: int, rssi_dbm: float) -> str:
+        if self.profile.ideal:
+            return RECEIVED
+        for other in self._window:
+            if other.sender_id == rid and other.start_us < frame.end_us and frame.start_us < other.end_us:
+                return HALF_DUPLEX
+        if rssi_dbm < self.sensitivity_dbm:
+            return OUT_OF_RANGE
+        armed_since = self._nodes[rid].listen_since_us
+        if armed_since is None or armed_since > frame.start_us:
+            return NOT_LISTENING
+        for other in self._window:
+            if other is frame or other.sender_id == frame.sender_id:
+                continue
+            if not (other.start_us < frame.end_us and frame.start_us < other.end_us):
+                continue
+            other_link = other.link.get(rid)
+            if other_link is None or other_link[0] < self.sensitivity_dbm:
+                continue
+            early, late = (frame, other) if frame.start_us <= other.start_us else (other, frame)
+            if early.end_us - late.start_us <= self.preamble_grace_us:
+                continue  # the overlap only ate the late frame's first preamble symbols
+            margin_db = rssi_dbm - other_link[0]
+            if margin_db < CAPTURE_THRESHOLD_DB:  # under 6 dB apart, or the weaker one
+                return COLLIDED
+        return RECEIVED
+
+    def _resolve(self, frame: _Frame) -> None:
+        sender = self._nodes[frame.sender_id]
+        sender.tx_frame = None
+        sender.events.append(RadioTxDone(frame.end_us, True))
+        receptions: list[Reception] = []
+        for rid, (rssi_dbm, snr_db) in frame.link.items():
+            fate = self._physical_fate(frame, rid, rssi_dbm)
+            draw = draw_faults(self.faults, self._fault_rng) if self.faults.any else NO_FAULT
+            payload = frame.payload
+            if fate == RECEIVED:
+                if draw.lost:
+                    fate = INJECTED_LOSS
+                elif draw.corrupted and payload:
+                    fate = CORRUPTED
+                    payload = flip_bits(payload, self._fault_rng)
+            if fate in (RECEIVED, CORRUPTED):
+                self._deliver(self._nodes[rid], RadioRxFrame(frame.end_us, payload, rssi_dbm, snr_db))
+                if fate == RECEIVED and draw.duplicated:
+                    due_us = frame.end_us + self.faults.duplicate_delay_us
+                    heapq.heappush(
+                        self._heap,
+                        (due_us, _DUPLICATE_DUE, rid, self._seq, (rid, due_us, payload, rssi_dbm, snr_db)),
+                    )
+                    self._seq += 1
+            self._counts[fate] += 1
+            receptions.append(Reception(rid, rssi_dbm, snr_db, fate))
+        self._counts["frames"] += 1
+        del self._unresolved[frame.seq]
+        if self._unresolved:
+            oldest_start_us = min(f.start_us for f in self._unresolved.values())
+            self._window = [f for f in self._window if f.end_us > oldest_start_us]
+        else:
+            self._window = []
+        mod = self.profile.modulation
+        air = AirFrame(
+            frame.start_us, frame.end_us, frame.sender_id, self.profile.freq_hz, mod.sf, mod.bw_hz,
+            frame.payload, tuple(receptions),
+        )
+        for sink in self._sinks:
+            sink(air)
+
+    def _deliver(self, node: _Node, event: RadioRxFrame) -> None:
+        node.events.append(event)
+        node.listen_since_us = None
+
+    def _duplicate_due(self, rid: int, due_us: int, payload: bytes, rssi_dbm: float, snr_db: float) -> None:
+        node = self._nodes[rid]
+        if node.listen_since_us is not None or self.profile.ideal:
+            self._deliver(node, RadioRxFrame(due_us, payload, rssi_dbm, snr_db))
+            self._counts["duplicates_delivered"] += 1
+        else:
+            node.waiting_duplicates.append((payload, rssi_dbm, snr_db))
