@@ -32,7 +32,13 @@ def polar_fill(logodds, row0, col0, res, px, py, bin0_rad, bin_rad, ranges_m, ra
     n = ranges_m.shape[0]
     rows, cols = logodds.shape
     half = 0.5 * res
-    reach = range_max_m + res
+    # Only as far as the longest beam: in tunnels that is far less than the sensor's range.
+    longest = 0.0
+    for b in range(n):
+        r = ranges_m[b]
+        if r > longest:
+            longest = r
+    reach = min(longest, range_max_m) + res
     # Cells the scan can touch: a disc of radius range_max around the sensor.
     i_lo = max(r_lo, int(math.floor((py - reach) / res)) - row0)
     i_hi = min(r_hi, int(math.floor((py + reach) / res)) - row0 + 1)

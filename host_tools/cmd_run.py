@@ -1,0 +1,87 @@
+"""`lorascout run`: one mission on the simulated HAL, summarised for people or as JSON."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from host_tools.mission import MissionConfig, run_mission
+from host_tools.progress import progress_bar
+
+DEFAULT_MAP = "cave:1"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--map", default=DEFAULT_MAP,
+                   help="PATH.yaml (ROS map_server), cave:SEED[:WxH] or tunnel:SEED[:WxH] (default %(default)s)")
+    p.add_argument("--robots", type=int, default=1, help="team size (default %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="mission seed: same seed, same result (default %(default)s)")
+    p.add_argument("--max-sim-s", type=float, default=7200.0, help="simulated time limit in seconds (default %(default)s)")
+    p.add_argument("--radio", default="ideal-100Bps", help="radio profile (default %(default)s)")
+    p.add_argument("--start", type=_xy, default=None, metavar="X,Y", help="start position in metres (default: the map's)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR", help="write mission.png and mission.json here")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _xy(text: str) -> tuple[float, float]:
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y in metres, got {text!r}") from None
+    return x, y
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.robots < 1:
+        print("lorascout run: --robots must be at least 1", file=sys.stderr)
+        return 2
+    cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
+                        max_sim_s=args.max_sim_s, radio=args.radio, start_xy=args.start)
+    bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
+    state = {"last": 0.0}
+
+    def progress(sim_s: float, coverage: float) -> None:
+        bar.update(sim_s - state["last"])
+        state["last"] = sim_s
+        bar.set_postfix(coverage=f"{coverage:.3f}")
+
+    try:
+        result = run_mission(cfg, progress)
+    except (ValueError, KeyError, OSError) as exc:
+        bar.close()
+        print(f"lorascout run: {exc}", file=sys.stderr)
+        return 2
+    bar.close()
+    report = result.to_json()
+    if args.out is not None:
+        from host_tools.plots import plot_mission
+
+        args.out.mkdir(parents=True, exist_ok=True)
+        plot_mission(result, args.out / "mission.png")
+        (args.out / "mission.json").write_text(json.dumps(report, indent=2) + "\n")
+    if args.json:
+        print(json.dumps(report, sort_keys=True))
+    else:
+        print(format_summary(report))
+        if args.out is not None:
+            print(f"wrote {args.out / 'mission.png'} and {args.out / 'mission.json'}")
+    return 0
+
+
+def format_summary(r: dict) -> str:
+    t90 = "not reached" if r["t_90_s"] is None else f"{r['t_90_s']:.1f} s"
+    paths = ", ".join(f"{p:.1f}" for p in r["path_length_m"])
+    lines = [
+        f"map            {r['map']}   (reachable free area {r['reachable_area_m2']:.0f} m²)",
+        f"robots         {r['robots']}   seed {r['seed']}   radio {r['radio']}",
+        f"coverage       {r['coverage'] * 100:.2f} % of the reachable free area",
+        f"path length    {paths} m",
+        f"T_total        {r['t_total_s']:.1f} s simulated",
+        f"T_90           {t90}",
+        f"ended          {r['termination']}   (robots: {', '.join(r['robot_status'])})",
+        f"in a wall      {r['robots_in_wall']} robot-ticks",
+        f"speed          {r['sim_speedup']:.1f}x real time, {r['ticks_per_s']:.0f} ticks/s, {r['wall_s']:.1f} s wall",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,57 @@
+"""PNG figures of missions: ground truth, what the team observed, paths, topological maps."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+ROBOT_COLOURS = plt.get_cmap("tab10").colors
+
+
+def _background(ax, occ, observed=None) -> None:
+    """Walls dark, free space white, observed free space tinted."""
+    img = np.where(occ.free, 1.0, 0.15)
+    rgb = np.dstack([img, img, img])
+    if observed is not None:
+        seen = observed & occ.free
+        rgb[seen] = (0.80, 0.92, 0.80)
+    extent = (occ.origin_x_m, occ.origin_x_m + occ.width_m, occ.origin_y_m, occ.origin_y_m + occ.height_m)
+    ax.imshow(rgb, origin="lower", extent=extent, interpolation="nearest")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal")
+
+
+def plot_mission(result, path: Path) -> None:
+    world = result.world
+    occ = world.occ
+    fig, axes = plt.subplots(1, 2, figsize=(14, 7), constrained_layout=True)
+    ax = axes[0]
+    _background(ax, occ, world.observed_union())
+    for i, t in enumerate(result.trajectories):
+        c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
+        ax.plot(t[:, 0], t[:, 1], color=c, lw=1.0, label=f"robot {i}: {result.path_length_m[i]:.0f} m")
+        ax.plot(t[0, 0], t[0, 1], "o", color=c, ms=5)
+    ax.set_title(f"{result.map_label}: observed {result.coverage * 100:.1f} % of reachable free area, "
+                 f"T_total {result.t_total_s:.0f} s ({result.termination})", fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+    ax = axes[1]
+    _background(ax, occ)
+    for i, agent in enumerate(result.agents):
+        c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
+        xy = agent.topo.positions()
+        for a, b in agent.topo.graph.edges():
+            ax.plot([xy[a, 0], xy[b, 0]], [xy[a, 1], xy[b, 1]], color=c, lw=0.5, alpha=0.6)
+        e = np.array([v.e_inf_bit for v in agent.topo.vertices])
+        if len(xy):
+            ax.scatter(xy[:, 0], xy[:, 1], s=4, color=c, label=f"robot {i}: {len(xy)} vertices")
+            open_ = e > 0
+            ax.scatter(xy[open_, 0], xy[open_, 1], s=14, facecolors="none", edgecolors="red", lw=0.5)
+    ax.set_title("topological map (red rings: vertices with obtainable information)", fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

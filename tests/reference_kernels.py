@@ -1,0 +1,111 @@
+"""Plain-Python twins of firmware/kernels.py, written for clarity, not speed.
+
+The tests run both on generated inputs and require the same answers."""
+from __future__ import annotations
+
+import heapq
+import math
+
+import numpy as np
+
+
+def polar_fill(logodds, row0, col0, res, px, py, bin0, binw, ranges, range_max, hit, miss, lmin, lmax,
+               r_lo, r_hi, c_lo, c_hi):
+    out = logodds.astype(np.float64).copy()
+    rows, cols = out.shape
+    n = len(ranges)
+    for i in range(max(r_lo, 0), min(r_hi, rows)):
+        for j in range(max(c_lo, 0), min(c_hi, cols)):
+            cx = (col0 + j + 0.5) * res - px
+            cy = (row0 + i + 0.5) * res - py
+            d = math.hypot(cx, cy)
+            if d > range_max:
+                continue
+            b = int(math.floor(((math.atan2(cy, cx) - bin0) % (2 * math.pi)) / binw + 0.5)) % n
+            r = ranges[b]
+            if not r > 0:
+                continue
+            limit = r if r >= range_max else r - res / 2
+            if d < limit:
+                out[i, j] = max(lmin, out[i, j] + miss)
+    for b, r in enumerate(ranges):
+        if not r > 0 or r >= range_max:
+            continue
+        a = bin0 + b * binw
+        i = int(math.floor((py + (r + res / 2) * math.sin(a)) / res)) - row0
+        j = int(math.floor((px + (r + res / 2) * math.cos(a)) / res)) - col0
+        if r_lo <= i < r_hi and c_lo <= j < c_hi and 0 <= i < rows and 0 <= j < cols:
+            out[i, j] = min(lmax, out[i, j] + hit)
+    return out
+
+
+def chamfer_distance(blocked):
+    """Multi-source shortest paths over the 8-neighbour grid with steps 1 and sqrt 2."""
+    rows, cols = blocked.shape
+    d = np.full((rows, cols), np.inf)
+    heap = []
+    for i, j in zip(*np.nonzero(blocked)):
+        d[i, j] = 0.0
+        heap.append((0.0, int(i), int(j)))
+    heapq.heapify(heap)
+    while heap:
+        dc, i, j = heapq.heappop(heap)
+        if dc > d[i, j]:
+            continue
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                if di == dj == 0:
+                    continue
+                ni, nj = i + di, j + dj
+                if 0 <= ni < rows and 0 <= nj < cols:
+                    nd = dc + (math.sqrt(2) if di and dj else 1.0)
+                    if nd < d[ni, nj]:
+                        d[ni, nj] = nd
+                        heapq.heappush(heap, (nd, ni, nj))
+    return d
+
+
+def dijkstra_grid(traversable, cost, si, sj):
+    rows, cols = traversable.shape
+    d = np.full((rows, cols), np.inf)
+    if not traversable[si, sj]:
+        return d
+    d[si, sj] = 0.0
+    heap = [(0.0, si, sj)]
+    while heap:
+        dc, i, j = heapq.heappop(heap)
+        if dc > d[i, j]:
+            continue
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                if di == dj == 0:
+                    continue
+                ni, nj = i + di, j + dj
+                if not (0 <= ni < rows and 0 <= nj < cols and traversable[ni, nj]):
+                    continue
+                if di and dj and not (traversable[i, nj] and traversable[ni, j]):
+                    continue
+                nd = dc + (math.sqrt(2) if di and dj else 1.0) * 0.5 * (cost[i, j] + cost[ni, nj])
+                if nd < d[ni, nj]:
+                    d[ni, nj] = nd
+                    heapq.heappush(heap, (nd, ni, nj))
+    return d
+
+
+def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells, unknown=0, occupied=2):
+    rows, cols = state.shape
+    out = []
+    dtheta = 2 * math.pi / n_rays
+    for ci, cj in zip(cand_i, cand_j):
+        total = 0.0
+        for k in range(n_rays):
+            a = k * dtheta
+            for s in range(1, int(max_range_cells) + 1):
+                i = math.floor(ci + 0.5 + s * math.sin(a))
+                j = math.floor(cj + 0.5 + s * math.cos(a))
+                if not (0 <= i < rows and 0 <= j < cols) or state[i, j] == occupied:
+                    break
+                if state[i, j] == unknown:
+                    total += s * dtheta
+        out.append(total)
+    return np.array(out)

@@ -1,0 +1,110 @@
+"""The numba kernels equal their plain references on generated inputs."""
+import math
+
+import numpy as np
+from hypothesis import given, settings, strategies as st
+
+from firmware import kernels
+from tests import reference_kernels as ref
+
+SETTINGS = settings(max_examples=40, deadline=None)
+
+
+@st.composite
+def scans(draw):
+    n = draw(st.integers(8, 90))
+    range_max = draw(st.floats(0.5, 3.0))
+    ranges = np.array(draw(st.lists(st.one_of(st.floats(0.0, range_max), st.just(range_max)), min_size=n, max_size=n)))
+    rows = draw(st.integers(5, 40))
+    cols = draw(st.integers(5, 40))
+    res = draw(st.sampled_from([0.05, 0.1, 0.2]))
+    row0 = draw(st.integers(-50, 50))
+    col0 = draw(st.integers(-50, 50))
+    px = (col0 + draw(st.floats(-5, cols + 5))) * res
+    py = (row0 + draw(st.floats(-5, rows + 5))) * res
+    bin0 = draw(st.floats(-4, 4))
+    logodds = np.array(draw(st.lists(st.floats(-4, 4, width=32), min_size=rows * cols, max_size=rows * cols)),
+                       np.float32).reshape(rows, cols)
+    r_lo = draw(st.integers(-2, rows))
+    c_lo = draw(st.integers(-2, cols))
+    region = (r_lo, draw(st.integers(r_lo, rows + 2)), c_lo, draw(st.integers(c_lo, cols + 2)))
+    return logodds, row0, col0, res, px, py, bin0, 2 * math.pi / n, ranges, range_max, region
+
+
+@SETTINGS
+@given(scans())
+def test_polar_fill_matches_reference(case):
+    logodds, row0, col0, res, px, py, bin0, binw, ranges, range_max, region = case
+    expected = ref.polar_fill(logodds, row0, col0, res, px, py, bin0, binw, ranges, range_max,
+                              0.85, -0.4, -4.0, 4.0, *region)
+    got = logodds.copy()
+    kernels.polar_fill(got, row0, col0, res, px, py, bin0, binw, ranges, range_max, 0.85, -0.4, -4.0, 4.0, *region)
+    np.testing.assert_allclose(got, expected, atol=1e-5)
+
+
+def test_polar_fill_marks_free_space_and_the_wall_behind_it():
+    logodds = np.zeros((40, 40), np.float32)
+    ranges = np.full(360, 1.0)  # a circular wall 1 m around the sensor at the window's centre
+    kernels.polar_fill(logodds, 0, 0, 0.1, 2.0, 2.0, 0.0, 2 * math.pi / 360, ranges, 3.0,
+                       0.85, -0.4, -4.0, 4.0, 0, 40, 0, 40)
+    assert logodds[20, 20] < 0          # the sensor's own cell is free
+    assert logodds[20, 30] > 0          # 1.05 m east: the wall
+    assert logodds[20, 35] == 0         # behind the wall: still unknown
+
+
+@st.composite
+def grids(draw, values=(0, 1)):
+    rows = draw(st.integers(3, 30))
+    cols = draw(st.integers(3, 30))
+    cells = draw(st.lists(st.sampled_from(values), min_size=rows * cols, max_size=rows * cols))
+    return np.array(cells, np.uint8).reshape(rows, cols)
+
+
+@SETTINGS
+@given(grids())
+def test_chamfer_distance_matches_reference(blocked):
+    got = kernels.chamfer_distance(blocked.astype(bool))
+    expected = ref.chamfer_distance(blocked.astype(bool))
+    np.testing.assert_allclose(got, expected, rtol=1e-5)
+
+
+@SETTINGS
+@given(grids(), st.data())
+def test_dijkstra_matches_reference(free, data):
+    rows, cols = free.shape
+    cost = np.array(data.draw(st.lists(st.floats(1.0, 3.0), min_size=rows * cols, max_size=rows * cols))).reshape(rows, cols)
+    si = data.draw(st.integers(0, rows - 1))
+    sj = data.draw(st.integers(0, cols - 1))
+    trav = free.astype(bool)
+    dist, parent = kernels.dijkstra_grid(trav, cost, si, sj)
+    np.testing.assert_allclose(dist, ref.dijkstra_grid(trav, cost, si, sj), rtol=1e-9)
+    # Every reached cell's parent chain leads back to the start.
+    for i, j in zip(*np.nonzero(np.isfinite(dist))):
+        steps = 0
+        while parent[i, j] >= 0:
+            i, j = divmod(int(parent[i, j]), cols)
+            steps += 1
+            assert steps <= rows * cols
+        assert (i, j) == (si, sj)
+
+
+@SETTINGS
+@given(grids(values=(0, 1, 2)), st.data())
+def test_observable_unknown_matches_reference(state, data):
+    rows, cols = state.shape
+    k = data.draw(st.integers(1, 5))
+    ci = np.array(data.draw(st.lists(st.integers(0, rows - 1), min_size=k, max_size=k)), np.int64)
+    cj = np.array(data.draw(st.lists(st.integers(0, cols - 1), min_size=k, max_size=k)), np.int64)
+    rays = data.draw(st.integers(4, 64))
+    reach = data.draw(st.floats(1.0, 40.0))
+    np.testing.assert_allclose(kernels.observable_unknown(state, ci, cj, rays, reach),
+                               ref.observable_unknown(state, ci, cj, rays, reach), rtol=1e-12)
+
+
+def test_observable_unknown_counts_about_the_disc_area():
+    state = np.zeros((101, 101), np.uint8)
+    count = kernels.observable_unknown(state, np.array([50]), np.array([50]), 256, 30.0)[0]
+    assert abs(count - math.pi * 30 * 31) / (math.pi * 30 * 31) < 1e-9
+    walled = state.copy()
+    walled[:, 55] = kernels.OCCUPIED  # a wall 5 cells east hides everything beyond it
+    assert kernels.observable_unknown(walled, np.array([50]), np.array([50]), 256, 30.0)[0] < 0.7 * count

@@ -1,0 +1,80 @@
+"""Scheduler, topological map and local map behaviour."""
+import math
+
+import numpy as np
+
+from firmware.local_map import KeyframeStore, LocalMap, bin_scan_by_bearing
+from firmware.params import ExplorationParams, TaskRates
+from firmware.scheduler import Scheduler, Task
+from firmware.topo_map import TopoMap
+from firmware import kernels
+
+
+def test_scheduler_runs_each_task_at_its_rate():
+    runs = {"fast": [], "slow": []}
+    s = Scheduler([Task("fast", 20, runs["fast"].append), Task("slow", 1, runs["slow"].append)])
+    for k in range(41):
+        s.run_due(k * 50_000)
+    assert len(runs["fast"]) == 41
+    assert runs["slow"] == [0, 1_000_000, 2_000_000]
+
+
+def test_scheduler_skips_missed_periods_instead_of_replaying_them():
+    runs = []
+    s = Scheduler([Task("t", 10, runs.append)])
+    s.run_due(0)
+    s.run_due(1_050_000)  # ten periods late
+    s.run_due(1_100_000)
+    assert runs == [0, 1_050_000, 1_100_000]
+
+
+def test_tick_period_is_the_fastest_rate():
+    assert TaskRates().tick_period_us == 50_000
+
+
+def test_topo_map_algorithm_1_merges_close_records_and_connects_neighbours():
+    t = TopoMap(d_build_m=1.0, d_connect_m=2.5)
+    a = t.apply(1, 0.0, 0.0, 0.0, True, 10.0)
+    b = t.apply(1, 2.0, 0.0, 0.0, True, 5.0)
+    same = t.apply(2, 0.5, 0.0, 0.0, True, 0.0)   # within d_build of vertex a: merged
+    far = t.apply(1, 10.0, 0.0, 0.0, True, 0.0)   # beyond d_connect of everything: isolated
+    assert same == a and len(t) == 3
+    assert t.vertices[a].ids == {1, 2} and t.vertices[a].e_inf_bit == 0.0
+    assert t.graph.has_edge(a, b) and t.graph.degree(far) == 0
+    src, costs = t.costs_from(0.1, 0.0)
+    assert src == a and costs[b] == 2.0 and far not in costs
+    # Disconnected graph: the cost falls back to the closest vertex the robot reaches.
+    cost, via = t.cost_to(costs, 10.0, 0.0)
+    assert via == b and cost == 2.0 + 8.0
+
+
+def test_bin_scan_by_bearing_rotates_into_the_world_frame():
+    ranges = np.full(360, 5.0)
+    ranges[0] = 1.0  # the beam straight ahead
+    binned = bin_scan_by_bearing(math.pi / 2, -math.pi, 2 * math.pi / 360, ranges, 360)
+    # angle_min = -pi, so beam 0 points backwards: world bearing pi/2 - pi = -pi/2 -> bin 270
+    assert binned[270] == 1.0 and binned[90] == 5.0
+
+
+def test_local_map_memory_is_fixed_and_keyframes_restore_what_left_the_window():
+    p = ExplorationParams()
+    kf = KeyframeStore(p.keyframe_bins)
+    m = LocalMap(p, 0.0, 0.0, kf)
+    size = m.logodds.nbytes
+    ranges = np.full(360, 3.0)  # a round room of radius 3 m around (0, 0)
+    m.integrate_scan(0.0, 0.0, 0.0, -math.pi, 2 * math.pi / 360, ranges, 10.0)
+    kf.add(0.0, 0.0, bin_scan_by_bearing(0.0, -math.pi, 2 * math.pi / 360, ranges, 360), 10.0)
+    before = kernels.classify(m.logodds, p.logodds_occupied, p.logodds_free)
+    i, j = m.cell_of(1.0, 1.0)
+    assert before[i, j] == kernels.FREE
+    for x in np.arange(2.0, 60.0, 2.0):      # drive far away: the room leaves the window
+        m.follow(x, 0.0)
+    assert not m.contains(0.0, 0.0)
+    for x in np.arange(60.0, -1.0, -2.0):    # and come back
+        m.follow(x, 0.0)
+    assert m.logodds.nbytes == size
+    after = kernels.classify(m.logodds, p.logodds_occupied, p.logodds_free)
+    i, j = m.cell_of(1.0, 1.0)
+    assert after[i, j] == kernels.FREE
+    i, j = m.cell_of(3.05, 0.0)
+    assert after[i, j] == kernels.OCCUPIED
