@@ -61,7 +61,7 @@ class Rn2483Modem:
         self._sync_poll = sync_poll
         self._max_payload = min(MODULE_MAX_PAYLOAD_BYTES, profile.max_payload_bytes)
         self._rx_buf = bytearray()
-        self._pending: list[tuple] = []        # ("rx", hex, stamp) / ("tx", ok, stamp) / ("err", stamp)
+        self._pending: list[tuple] = []        # ("rx", hex, stamp) / ("tx", ok, stamp); stamp = clock time the line was read
         self._transmitting = False
         self._receiving = False
         self.lines_ignored = 0                 # unexpected or malformed lines, for diagnostics
@@ -100,7 +100,10 @@ class Rn2483Modem:
 
     # -- RadioModem -----------------------------------------------------------------
     def transmit(self, payload: bytes) -> bool:
-        self._drain()
+        if self._sync_poll and self._transmitting:
+            self._barrier()   # the radio_tx_ok of a frame that ended by now must be seen
+        else:
+            self._drain()
         if self._transmitting or len(payload) > self._max_payload:
             return False
         if self._receiving:

@@ -80,7 +80,9 @@ class _Pty:
 class ModemBank:
     """N virtual RN2483 modems sharing `channel`, one per node id.
 
-    The caller attaches the node ids to the Channel (positions are its business). In
+    The caller attaches the node ids to the Channel (positions are its business) before
+    making the bank, and from then on leaves the Channel's time and events to the bank:
+    call `bank.advance_to`, never `channel.take_events` for these nodes. In
     lockstep mode (`lockstep=True`, the default) a daemon thread serves commands at once;
     the runner moves time with `advance_to`. With `lockstep=False` nothing runs until the
     caller calls `serve`.
@@ -102,6 +104,10 @@ class ModemBank:
         except BaseException:
             self._close_fds()
             raise
+        # A module after power-on is not receiving (the Channel arms nodes when attached);
+        # the driver's `radio rx 0` arms them again at its own time.
+        for n in self.node_ids:
+            channel.set_listening(n, False, start_us)
         self._by_master = {p.master: i for i, p in enumerate(self._ptys)}
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
@@ -245,6 +251,9 @@ class ModemBank:
             line = raw.decode("ascii", errors="replace")
             self._emit(i, self.modems[i].command(line, now_us))
             self.commands_served += 1
+            # Arming can hand over a frame at once (an injected duplicate that waited for
+            # the receiver): give it to the module now, while it is in the state that asked.
+            self._dispatch_channel_events()
         if len(p.inbuf) > _MAX_PENDING_INPUT:
             # The module's line buffer overflows on an endless line: it answers invalid_param.
             p.inbuf.clear()
