@@ -137,7 +137,12 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         if all(a.done for a in agents) or now >= max_us:
             break
         for agent in agents:
-            agent.tick(profiler)
+            if profiler is not None:
+                profiler.enter("tick")
+                agent.tick(profiler)
+                profiler.leave("tick")
+            else:
+                agent.tick()
         world.step(tick_us)
         channel.advance_to(world.now_us)
         ticks += 1
