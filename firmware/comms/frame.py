@@ -8,7 +8,7 @@
     5       1     hops taken (high nibble) | hops left (low nibble); 0 left = do not relay
     6       L     groups: a tag byte (record type code << 4 | count - 1) then `count`
                   records of that type, each exactly its schema size
-    6+L     2     CRC-16/DNP, big-endian, over the 2-byte schema fingerprint followed by
+    6+L     2     CRC-16/MODBUS (see schema.CRC_NAME), big-endian, over the 2-byte schema fingerprint followed by
                   bytes 0 .. 6+L-1 (the fingerprint is folded in, never sent: pymavlink's
                   CRC_EXTRA idea, so a peer with a different table rejects our frames)
 

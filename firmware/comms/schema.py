@@ -24,11 +24,15 @@ import crcmod.predefined
 # Frame format version; part of the fingerprint, so a change here changes every CRC.
 FRAME_VERSION = 1
 
-# The CRC of the whole system, named by its catalogue name (crcmod / reveng).
-# CRC-16/DNP: poly 0x3D65 reflected, init 0, xorout 0xFFFF; check 0xEA82 over b"123456789";
-# Hamming distance 6 for the short frames we send (Koopman), so any 5 flipped bits are caught.
-CRC_NAME = "crc-16-dnp"
-CRC_CHECK = 0xEA82
+# The frame CRC, by its catalogue name (crcmod "modbus" = reveng CRC-16/MODBUS: poly 0x8005
+# reflected, init 0xFFFF, xorout 0; check 0x4B37 over b"123456789").
+# Why not CRC-16/DNP (0x3D65)? Its polynomial has period 151 bits: its Hamming distance 6
+# holds only up to 135 data bits, and two flipped bits 151 apart pass it. Our frames run to
+# 255 bytes (2040 bits). 0x8005 = (x + 1)(x^15 + x + 1) has period 32767, so every 1-, 2- and
+# odd-bit error in any frame is caught (HD 4, the best a 16-bit CRC reaches at this length),
+# and it differs from the LoRa PHY's CRC-16/CCITT (0x1021), so the two checks are independent.
+CRC_NAME = "modbus"
+CRC_CHECK = 0x4B37
 crc16 = crcmod.predefined.mkPredefinedCrcFun(CRC_NAME)
 assert crc16(b"123456789") == CRC_CHECK, "crcmod catalogue entry does not match its check value"
 
@@ -155,10 +159,11 @@ BY_NAME: dict[str, RecordType] = {r.name: r for r in RECORD_TYPES}
 BY_CODE: dict[int, RecordType] = {r.code: r for r in RECORD_TYPES}
 
 
-def _check_table() -> None:
-    assert len(BY_NAME) == len(RECORD_TYPES), "duplicate record type name"
-    assert len(BY_CODE) == len(RECORD_TYPES), "duplicate record type code"
-    for r in RECORD_TYPES:
+def check_table(types: tuple[RecordType, ...]) -> None:
+    """AssertionError naming the first inconsistency (run on RECORD_TYPES at import)."""
+    assert len({r.name for r in types}) == len(types), "duplicate record type name"
+    assert len({r.code for r in types}) == len(types), "duplicate record type code"
+    for r in types:
         assert 1 <= r.code <= MAX_TYPE_CODE, f"{r.name}: code {r.code} outside 1..{MAX_TYPE_CODE}"
         assert r.name.isidentifier(), f"{r.name}: not an identifier"
         names = [f.name for f in r.fields]
@@ -174,16 +179,16 @@ def _check_table() -> None:
                 f"{r.name}.{f.name}: range [{f.min_value}, {f.max_value}] does not fit {f.bits} bits")
 
 
-_check_table()
+check_table(RECORD_TYPES)
 assert BY_NAME["topo"].bits_used == 89 and BY_NAME["topo"].size_bytes == 12  # Table I
 
 
-def fingerprint() -> int:
+def fingerprint(types: tuple[RecordType, ...] = RECORD_TYPES, version: int = FRAME_VERSION) -> int:
     """CRC-16 of everything that decides how bytes are read (pymavlink's CRC_EXTRA, for the
     whole table): version, codes, names, sizes, field names, widths, signs, units, ranges.
     Documentation strings are left out so rewording a doc keeps peers compatible."""
-    parts = [f"lorascout-frame-v{FRAME_VERSION}"]
-    for r in sorted(RECORD_TYPES, key=lambda r: r.code):
+    parts = [f"lorascout-frame-v{version}"]
+    for r in sorted(types, key=lambda r: r.code):
         parts.append(f"{r.code}:{r.name}:{r.size_bytes}")
         for f in r.fields:
             parts.append(f"{f.name}:{f.bits}:{'s' if f.signed else 'u'}:{f.unit}:{f.min_value}:{f.max_value}")

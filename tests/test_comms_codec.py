@@ -1,0 +1,71 @@
+"""Record codec: round trip at the declared size, range errors on encode, reasons on decode."""
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from firmware.comms.codec import Reason, decode, encode
+from firmware.comms.schema import BY_NAME, RECORD_CLASSES, RECORD_TYPES
+
+
+def values_for(rt):
+    return st.fixed_dictionaries({f.name: st.integers(f.min_value, f.max_value) for f in rt.fields})
+
+
+any_record = st.sampled_from(RECORD_TYPES).flatmap(lambda rt: st.tuples(st.just(rt), values_for(rt)))
+
+
+@settings(max_examples=400, deadline=None)
+@given(any_record)
+def test_round_trip_at_declared_size(rec):
+    rt, values = rec
+    data = encode(rt.name, values)
+    assert len(data) == rt.size_bytes
+    got = decode(rt.name, data)
+    assert got.reason is Reason.OK and got.values == values
+    assert encode(rt.name, RECORD_CLASSES[rt.name](**values)) == data
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from(RECORD_TYPES).flatmap(lambda rt: st.tuples(st.just(rt), st.binary(min_size=0, max_size=16))))
+def test_decode_never_raises(case):
+    rt, data = case
+    got = decode(rt, data)
+    if len(data) != rt.size_bytes:
+        assert got.reason in (Reason.TRUNCATED, Reason.BAD_LENGTH) and got.values is None
+    elif got.reason is Reason.OK:
+        assert encode(rt, got.values) == data      # the only bytes that decode to these values
+    else:
+        assert got.reason is Reason.OUT_OF_RANGE and got.values is None
+
+
+def test_field_order_is_msb_first():
+    values = dict(sender_id=0xAB, x_cm=-1, y_cm=0, z_cm=1, presence=1, e_inf_code=0xFF)
+    assert encode("topo", values).hex() == "ab" "ffffff" "000000" "000001" "ff" "80"
+
+
+def test_range_errors_name_field_and_range():
+    v = dict(sender_id=1, x_cm=0, y_cm=0, yaw_cdeg=18001, speed_cmps=0, exploring=0, done=0,
+             returning=0, vertex_count=0)
+    with pytest.raises(ValueError, match=r"pose\.yaw_cdeg = 18001 outside valid range \[-18000, 18000\]"):
+        encode("pose", v)
+    with pytest.raises(ValueError, match=r"topo\.x_cm = 8388608 outside valid range \[-8388608, 8388607\]"):
+        encode("topo", dict(sender_id=1, x_cm=1 << 23, y_cm=0, z_cm=0, presence=0, e_inf_code=0))
+    with pytest.raises(ValueError, match=r"missing fields \['e_inf_code'\]"):
+        encode("topo", dict(sender_id=1, x_cm=0, y_cm=0, z_cm=0, presence=0))
+    with pytest.raises(ValueError, match="expected an integer"):
+        encode("topo", dict(sender_id=1, x_cm=0.5, y_cm=0, z_cm=0, presence=0, e_inf_code=0))
+    with pytest.raises(ValueError, match="unknown record type 'nope'"):
+        encode("nope", {})
+
+
+def test_decode_reports_out_of_range_and_padding():
+    pose = BY_NAME["pose"]
+    good = encode(pose, dict(sender_id=1, x_cm=0, y_cm=0, yaw_cdeg=0, speed_cmps=0, exploring=0,
+                             done=0, returning=0, vertex_count=0))
+    word = int.from_bytes(good, "big")
+    yaw_shift = 96 - (8 + 24 + 24) - 16
+    bad = (word | (0x7FFF << yaw_shift)).to_bytes(12, "big")
+    got = decode(pose, bad)
+    assert got.reason is Reason.OUT_OF_RANGE and "yaw_cdeg = 32767" in got.detail
+    padded = bytearray(encode("topo", dict(sender_id=1, x_cm=0, y_cm=0, z_cm=0, presence=0, e_inf_code=0)))
+    padded[-1] |= 1
+    assert decode("topo", bytes(padded)).reason is Reason.OUT_OF_RANGE
