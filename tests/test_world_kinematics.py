@@ -1,0 +1,210 @@
+"""Robot bodies: exact arcs, and the disc never touches a wall cell, on random and real maps."""
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from PIL import Image
+
+from world_sim.kinematics import BodyState, ClearanceMap, step, wrap_angle
+from world_sim.occupancy_map import OccupancyMap
+
+MAPS = Path("/work/shared/maps")
+RADIUS_M = 0.25
+
+
+def load_ros_map_pixels(name: str, resolution_m: float, free_thresh: float) -> OccupancyMap:
+    """Minimal ROS map_server reading for tests (negate 0, trinary): free where p < free_thresh."""
+    pixels = np.asarray(Image.open(MAPS / name).convert("L"), dtype=np.float64)
+    p_occupied = (255.0 - pixels) / 255.0
+    free = np.flipud(p_occupied < free_thresh)  # image row 0 is the top, grid row 0 the bottom
+    return OccupancyMap(free=np.ascontiguousarray(free), resolution_m=resolution_m, origin_x_m=0.0, origin_y_m=0.0, name=name)
+
+
+@lru_cache(maxsize=None)
+def maze_map() -> tuple[OccupancyMap, ClearanceMap]:
+    occ = load_ros_map_pixels("maze_a.png", 0.2, 0.3)
+    return occ, ClearanceMap.from_map(occ)
+
+
+class WallBoxes:
+    """Brute-force ground truth: every wall cell square, plus the map edge."""
+
+    def __init__(self, occ: OccupancyMap):
+        self.occ = occ
+        rows, cols = np.nonzero(~occ.free)
+        self.xlo = occ.origin_x_m + cols * occ.resolution_m
+        self.ylo = occ.origin_y_m + rows * occ.resolution_m
+        self.res = occ.resolution_m
+
+    def clearance(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        occ = self.occ
+        edge = np.minimum.reduce([
+            xs - occ.origin_x_m, occ.origin_x_m + occ.width_m - xs,
+            ys - occ.origin_y_m, occ.origin_y_m + occ.height_m - ys,
+        ])
+        lo_x, hi_x = xs.min() - 2.0, xs.max() + 2.0
+        lo_y, hi_y = ys.min() - 2.0, ys.max() + 2.0
+        near = (self.xlo > lo_x) & (self.xlo < hi_x) & (self.ylo > lo_y) & (self.ylo < hi_y)
+        if not near.any():
+            return np.minimum(edge, 2.0)
+        xlo, ylo = self.xlo[near][None, :], self.ylo[near][None, :]
+        dx = np.maximum(np.maximum(xlo - xs[:, None], 0.0), xs[:, None] - (xlo + self.res))
+        dy = np.maximum(np.maximum(ylo - ys[:, None], 0.0), ys[:, None] - (ylo + self.res))
+        return np.minimum(edge, np.minimum(np.hypot(dx, dy).min(axis=1), 2.0))
+
+
+def arc_positions(start: BodyState, v: float, omega: float, t_end: float, n: int = 200):
+    t = np.linspace(0.0, t_end, n)
+    if abs(omega) < 1e-12:
+        return start.x_m + v * t * math.cos(start.yaw_rad), start.y_m + v * t * math.sin(start.yaw_rad)
+    yaw = start.yaw_rad + omega * t
+    k = v / omega
+    return (start.x_m + k * (np.sin(yaw) - math.sin(start.yaw_rad)),
+            start.y_m - k * (np.cos(yaw) - math.cos(start.yaw_rad)))
+
+
+commands_st = st.lists(
+    st.tuples(st.floats(-1.0, 1.0), st.floats(-2.0, 2.0), st.floats(0.01, 0.8)), min_size=1, max_size=25
+)
+
+
+def drive_and_check(occ: OccupancyMap, clr: ClearanceMap, start: BodyState, commands) -> int:
+    truth = WallBoxes(occ)
+    state = start
+    blocked = 0
+    for v, omega, dt in commands:
+        res = step(state, v, omega, dt, clr, RADIUS_M)
+        # The whole swept path (densely sampled) and the end pose keep the disc off every wall.
+        t_end = res.travelled_m / abs(v) if v != 0 else 0.0
+        xs, ys = arc_positions(state, v, omega, t_end)
+        assert truth.clearance(xs, ys).min() > RADIUS_M - 1e-12
+        end = truth.clearance(np.array([res.state.x_m]), np.array([res.state.y_m]))[0]
+        assert end > RADIUS_M
+        # The end position lies on the commanded arc; the rotation is always applied in full.
+        assert math.hypot(xs[-1] - res.state.x_m, ys[-1] - res.state.y_m) < 1e-9
+        assert abs(wrap_angle(res.state.yaw_rad - (state.yaw_rad + omega * dt))) < 1e-9
+        assert -math.pi <= res.state.yaw_rad < math.pi
+        assert 0.0 <= res.travelled_m <= abs(v) * dt + 1e-12
+        if not res.blocked:
+            assert res.travelled_m == pytest.approx(abs(v) * dt, abs=1e-12)
+        blocked += res.blocked
+        state = res.state
+    return blocked
+
+
+@st.composite
+def random_world(draw):
+    res = draw(st.sampled_from([0.1, 0.2, 0.35]))
+    min_cells = int(math.ceil(1.0 / res)) + 1  # room for the 0.5 m disc once a patch is cleared
+    rows = draw(st.integers(min_cells, 16))
+    cols = draw(st.integers(min_cells, 16))
+    bits = draw(st.lists(st.floats(0, 1), min_size=rows * cols, max_size=rows * cols))
+    density = draw(st.floats(0.0, 0.3))
+    free = (np.array(bits).reshape(rows, cols) >= density)
+    occ = OccupancyMap(free=free, resolution_m=res, origin_x_m=-1.3, origin_y_m=2.1)
+    clr = ClearanceMap.from_map(occ)
+    # A start where the disc fits; otherwise clear a patch in the middle.
+    cands = [(r, c) for r in range(rows) for c in range(cols)
+             if clr.disc_fits(*occ.center_of(r, c), RADIUS_M)]
+    if not cands:
+        free = free.copy()
+        span = int(math.ceil(RADIUS_M / res)) + 1
+        r0, c0 = rows // 2, cols // 2
+        free[max(r0 - span, 0): r0 + span + 1, max(c0 - span, 0): c0 + span + 1] = True
+        occ = OccupancyMap(free=free, resolution_m=res, origin_x_m=-1.3, origin_y_m=2.1)
+        clr = ClearanceMap.from_map(occ)
+        cands = [(r, c) for r in range(rows) for c in range(cols)
+                 if clr.disc_fits(*occ.center_of(r, c), RADIUS_M)]
+    r, c = cands[draw(st.integers(0, len(cands) - 1))]
+    x, y = occ.center_of(r, c)
+    return occ, clr, BodyState(x, y, draw(st.floats(-math.pi, math.pi)))
+
+
+@settings(max_examples=120, deadline=None)
+@given(random_world(), commands_st)
+def test_never_enters_a_wall_on_random_grids(world, commands):
+    occ, clr, start = world
+    drive_and_check(occ, clr, start, commands)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10_000), commands_st)
+def test_never_enters_a_wall_in_the_maze(pick, commands):
+    occ, clr = maze_map()
+    cells = np.argwhere(occ.free)
+    for k in range(len(cells)):
+        r, c = cells[(pick * 7919 + k * 104729) % len(cells)]
+        x, y = occ.center_of(int(r), int(c))
+        if clr.disc_fits(x, y, RADIUS_M):
+            break
+    drive_and_check(occ, clr, BodyState(x, y, 0.3), commands * 4)
+
+
+def test_driving_into_a_maze_wall_is_blocked_and_counted():
+    occ, clr = maze_map()
+    cells = np.argwhere(occ.free)
+    x, y = next(occ.center_of(int(r), int(c)) for r, c in cells[::97] if clr.disc_fits(*occ.center_of(int(r), int(c)), RADIUS_M))
+    # Long straight pushes in four directions: corridors are 2 m wide, so every one hits.
+    blocked = drive_and_check(occ, clr, BodyState(x, y, 0.0), [(0.8, 0.0, 30.0), (0.0, math.pi / 2, 1.0)] * 4)
+    assert blocked >= 4
+
+
+@settings(max_examples=200, deadline=None)
+@given(random_world(), st.floats(0, 1), st.floats(0, 1))
+def test_clearance_is_exact_near_walls(world, fx, fy):
+    occ, clr, _ = world
+    x = occ.origin_x_m + fx * occ.width_m
+    y = occ.origin_y_m + fy * occ.height_m
+    truth = WallBoxes(occ).clearance(np.array([x]), np.array([y]))[0]
+    if not occ.is_free_point(x, y):
+        truth = 0.0
+    got = clr.clearance_m(x, y, cap_m=0.6)
+    assert got == pytest.approx(min(truth, 0.6), abs=1e-12)
+
+
+def test_open_space_arc_is_exact():
+    occ = OccupancyMap(free=np.ones((100, 100), dtype=bool), resolution_m=0.1, origin_x_m=-5.0, origin_y_m=-5.0)
+    clr = ClearanceMap.from_map(occ)
+    # Half a circle of radius 1 m: (0, 0, 0) -> (0, 2, pi).
+    res = step(BodyState(0.0, 0.0, 0.0), 1.0, 1.0, math.pi, clr, RADIUS_M)
+    assert not res.blocked
+    assert res.state.x_m == pytest.approx(0.0, abs=1e-12)
+    assert res.state.y_m == pytest.approx(2.0, abs=1e-12)
+    assert res.state.yaw_rad == pytest.approx(-math.pi, abs=1e-12)  # wrapped into [-pi, pi)
+    assert res.travelled_m == pytest.approx(math.pi)
+    # Straight, backwards.
+    res = step(BodyState(1.0, 1.0, math.pi / 2), -0.5, 0.0, 2.0, clr, RADIUS_M)
+    assert (res.state.x_m, res.state.y_m) == pytest.approx((1.0, 0.0), abs=1e-12)
+    assert res.travelled_m == pytest.approx(1.0)
+
+
+def test_stops_close_to_a_wall_and_may_still_turn():
+    free = np.ones((20, 40), dtype=bool)
+    free[:, 30:] = False  # wall from x = 3.0 m
+    occ = OccupancyMap(free=free, resolution_m=0.1, origin_x_m=0.0, origin_y_m=0.0)
+    clr = ClearanceMap.from_map(occ)
+    res = step(BodyState(1.0, 1.0, 0.0), 0.8, 0.0, 10.0, clr, RADIUS_M)
+    assert res.blocked
+    # Stops within a sample spacing of contact: 2.75 m is where the disc would touch.
+    assert 2.74 < res.state.x_m < 2.75
+    turned = step(res.state, 0.0, 1.5, 1.0, clr, RADIUS_M)
+    assert not turned.blocked and turned.travelled_m == 0.0
+    assert (turned.state.x_m, turned.state.y_m) == (res.state.x_m, res.state.y_m)
+    assert turned.state.yaw_rad == pytest.approx(1.5)
+    # Backing away works.
+    back = step(res.state, -0.5, 0.0, 1.0, clr, RADIUS_M)
+    assert not back.blocked and back.state.x_m == pytest.approx(res.state.x_m - 0.5)
+
+
+def test_bad_commands_are_rejected():
+    occ = OccupancyMap(free=np.ones((10, 10), dtype=bool), resolution_m=0.1, origin_x_m=0.0, origin_y_m=0.0)
+    clr = ClearanceMap.from_map(occ)
+    with pytest.raises(ValueError, match="v_mps"):
+        step(BodyState(0.5, 0.5, 0.0), math.nan, 0.0, 0.1, clr, RADIUS_M)
+    with pytest.raises(ValueError, match="dt_s"):
+        step(BodyState(0.5, 0.5, 0.0), 0.1, 0.0, -0.1, clr, RADIUS_M)
