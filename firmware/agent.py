@@ -18,6 +18,7 @@ from firmware.explorer import Explorer
 from firmware.local_map import KeyframeStore, LocalMap, bin_scan_by_bearing
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task, TaskProfiler
+from firmware.comms.schema import e_inf_bit_to_code
 from firmware.topo_map import TopoMap
 from hal.bundle import Hal
 from hal.samples import LidarScan
@@ -117,5 +118,5 @@ class ExplorerAgent:
         kx, ky, ranges, range_max = self._last_scan_binned
         self.keyframes.add(kx, ky, ranges, range_max)
         e_inf = self.explorer.waypoints.total_entropy_near(x_m, y_m, self.p.local_map_size_m / 2)
-        self.topo.apply(self.hal.robot_id, x_m, y_m, 0.0, True, e_inf)
+        self.topo.add((self.hal.robot_id, round(x_m * 100), round(y_m * 100), 0, 1, e_inf_bit_to_code(e_inf)))
         self._last_vertex_xy = (x_m, y_m)

@@ -95,7 +95,7 @@ class Explorer:
             self.reached += 1
             self.target = None
 
-        topo_src, topo_costs = self.topo.costs_from(x_m, y_m)
+        topo_src, topo_dist, topo_parent = self.topo.costs_from(x_m, y_m)
         reachable_entropy = 0.0
         candidates: list[tuple[float, int, Waypoint]] = []
         for k, w in enumerate(self.waypoints.items):
@@ -104,7 +104,7 @@ class Explorer:
                 cost = float(dist[wi, wj]) * res
                 reachable_entropy += w.e_bit
             else:
-                cost, _ = self.topo.cost_to(topo_costs, w.x_m, w.y_m)
+                cost, _ = self.topo.cost_to(topo_dist, w.x_m, w.y_m)
                 if topo_src is not None:
                     src_x, src_y = self.topo.positions()[topo_src]
                     cost += math.hypot(src_x - x_m, src_y - y_m)
@@ -113,7 +113,7 @@ class Explorer:
         while candidates:
             choice = self._choose(candidates)
             w = choice[2]
-            path = self._route(w, dist, parent, reachable, topo_src, topo_costs, x_m, y_m)
+            path = self._route(w, dist, parent, reachable, topo_src, topo_dist, topo_parent, x_m, y_m)
             if path is not None:
                 self._track_progress(w, choice[0], now_us)
                 if self.target is None:
@@ -154,7 +154,7 @@ class Explorer:
             self.dropped_stalled += 1
             self.target = None
 
-    def _route(self, w: Waypoint, dist, parent, reachable, topo_src, topo_costs, x_m: float, y_m: float) -> np.ndarray | None:
+    def _route(self, w: Waypoint, dist, parent, reachable, topo_src, topo_dist, topo_parent, x_m: float, y_m: float) -> np.ndarray | None:
         """A local path to the waypoint, or to the farthest vertex on the topological route
         towards it that the local map can reach."""
         n = self.map.n
@@ -163,10 +163,10 @@ class Explorer:
             return self._path_xy(extract_path(parent, wi, wj))
         if topo_src is None:
             return None
-        _, goal_vertex = self.topo.cost_to(topo_costs, w.x_m, w.y_m)
+        _, goal_vertex = self.topo.cost_to(topo_dist, w.x_m, w.y_m)
         if goal_vertex is None:
             return None
-        route = self.topo.path(topo_src, goal_vertex)
+        route = self.topo.path(topo_parent, goal_vertex)
         xy = self.topo.positions()
         for v in reversed(route):
             vi, vj = self.map.cell_of(xy[v, 0], xy[v, 1])

@@ -1,83 +1,247 @@
-"""Bayer & Faigl's topological map (IV-B): vertices at visited positions, each with the set
-of robots seen there and the information still obtainable from it, edges between vertices
-closer than d_connect, and long-distance costs by Dijkstra over the graph.
+"""Bayer & Faigl's topological map (IV-B), as a pure function of the records a robot holds.
+
+A vertex is a visited position with the set of robots seen there and the information still
+obtainable from it (e_inf); edges join vertices closer than d_connect; long-distance costs
+come from Dijkstra over the graph.
+
+Robots hear records in different orders, lose some and hear others twice, yet two robots
+that hold the same records must plan on the same map. So the map is rebuilt from the SET
+of records: duplicates collapse, and Algorithm 1 folds the records in one canonical order
+(sorted by their wire values). Algorithm 1's "h.e_inf <- t.e_inf" depends on arrival order;
+here the merged e_inf is the minimum over the vertex's records, which equals "the latest"
+whenever information only shrinks as places get observed, and needs no clock.
+
+Positions are kept in the wire's units (integer cm) so a robot's own records and the copies
+its peers decode are the same values, bit for bit.
 """
 from __future__ import annotations
 
+import heapq
 import math
-from dataclasses import dataclass, field
 
-import networkx as nx
 import numpy as np
+from numba import njit
+
+# (sender_id, x_cm, y_cm, z_cm, presence, e_inf_code): a topo record as on the wire.
+TopoRecord = tuple[int, int, int, int, int, int]
+
+_CELL_OFFSET = 1 << 20
 
 
-@dataclass
-class Vertex:
-    x_m: float
-    y_m: float
-    z_m: float
-    ids: set[int] = field(default_factory=set)   # robots that reported presence here
-    e_inf_bit: float = 0.0                       # information obtainable here (eq. 4)
+@njit(cache=True)
+def _cell_key(cx, cy):
+    return (cx + _CELL_OFFSET) * (1 << 22) + (cy + _CELL_OFFSET)
+
+
+@njit(cache=True)
+def fold_records(rec, d_build_cm, d_connect_cm):
+    """Algorithm 1 over records in the given order. rec: int64 (n, 6) as TopoRecord.
+
+    Returns vertex positions (cm), id bitmasks (4 x 64 bits per vertex), e_inf codes, and
+    the edges (u, v, length in cm) with u > v. A uniform grid of d_build cells finds the
+    closest vertex: any vertex closer than d_build lies in the 3 x 3 cells around a record.
+    """
+    n = rec.shape[0]
+    vx = np.empty(n, np.int64)
+    vy = np.empty(n, np.int64)
+    vz = np.empty(n, np.int64)
+    ids = np.zeros((n, 4), np.uint64)
+    e = np.empty(n, np.int64)
+    nxt = np.full(n, -1, np.int64)
+    heads = dict()
+    heads[np.int64(-1)] = np.int64(-1)
+    eu = []
+    ev = []
+    ew = []
+    count = 0
+    cell = d_build_cm
+    reach = int(math.ceil(d_connect_cm / cell))
+    for r in range(n):
+        sender = rec[r, 0]
+        x = rec[r, 1]
+        y = rec[r, 2]
+        cx = x // cell
+        cy = y // cell
+        best = -1
+        best_d2 = 0.0
+        for gx in range(cx - 1, cx + 2):
+            for gy in range(cy - 1, cy + 2):
+                key = _cell_key(gx, gy)
+                v = heads[key] if key in heads else -1
+                while v >= 0:
+                    dx = float(vx[v] - x)
+                    dy = float(vy[v] - y)
+                    d2 = dx * dx + dy * dy
+                    if best < 0 or d2 < best_d2 or (d2 == best_d2 and v < best):
+                        best = v
+                        best_d2 = d2
+                    v = nxt[v]
+        if best >= 0 and math.sqrt(best_d2) < d_build_cm:
+            if rec[r, 4] != 0:
+                ids[best, sender >> 6] |= np.uint64(1) << np.uint64(sender & 63)
+            if rec[r, 5] < e[best]:
+                e[best] = rec[r, 5]
+            continue
+        k = count
+        count += 1
+        vx[k] = x
+        vy[k] = y
+        vz[k] = rec[r, 3]
+        e[k] = rec[r, 5]
+        if rec[r, 4] != 0:
+            ids[k, sender >> 6] |= np.uint64(1) << np.uint64(sender & 63)
+        for gx in range(cx - reach, cx + reach + 1):
+            for gy in range(cy - reach, cy + reach + 1):
+                key = _cell_key(gx, gy)
+                v = heads[key] if key in heads else -1
+                while v >= 0:
+                    dx = float(vx[v] - x)
+                    dy = float(vy[v] - y)
+                    d = math.sqrt(dx * dx + dy * dy)
+                    if d <= d_connect_cm:
+                        eu.append(k)
+                        ev.append(v)
+                        ew.append(d)
+                    v = nxt[v]
+        key = _cell_key(cx, cy)
+        nxt[k] = heads[key] if key in heads else -1
+        heads[key] = k
+    m = len(eu)
+    edges = np.empty((m, 2), np.int64)
+    lengths = np.empty(m, np.float64)
+    for i in range(m):
+        edges[i, 0] = eu[i]
+        edges[i, 1] = ev[i]
+        lengths[i] = ew[i]
+    return vx[:count].copy(), vy[:count].copy(), vz[:count].copy(), ids[:count].copy(), e[:count].copy(), edges, lengths
+
+
+@njit(cache=True)
+def dijkstra_csr(indptr, indices, weights, src):
+    """Single-source shortest paths on an undirected graph in CSR form (ties by vertex index)."""
+    n = indptr.shape[0] - 1
+    dist = np.full(n, np.inf)
+    parent = np.full(n, -1, np.int64)
+    dist[src] = 0.0
+    heap = [(0.0, src)]
+    while len(heap) > 0:
+        d, u = heapq.heappop(heap)
+        if d > dist[u]:
+            continue
+        for k in range(indptr[u], indptr[u + 1]):
+            v = indices[k]
+            nd = d + weights[k]
+            if nd < dist[v]:
+                dist[v] = nd
+                parent[v] = u
+                heapq.heappush(heap, (nd, v))
+    return dist, parent
 
 
 class TopoMap:
     def __init__(self, d_build_m: float, d_connect_m: float) -> None:
-        self.d_build_m = d_build_m
-        self.d_connect_m = d_connect_m
-        self.vertices: list[Vertex] = []
-        self.graph = nx.Graph()
-        self._xy = np.zeros((0, 2), np.float64)
+        self.d_build_cm = int(round(d_build_m * 100))
+        self.d_connect_cm = int(round(d_connect_m * 100))
+        self._records: set[TopoRecord] = set()
+        self._dirty = False
+        self._empty()
 
+    def _empty(self) -> None:
+        self._xy_m = np.zeros((0, 2))
+        self._ids = np.zeros((0, 4), np.uint64)
+        self._e_code = np.zeros(0, np.int64)
+        self.edges = np.zeros((0, 2), np.int64)
+        self._csr = (np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
+
+    # --- records --------------------------------------------------------------------
+    def add(self, record: TopoRecord) -> bool:
+        """Hold one more record; True if it was new."""
+        record = tuple(int(v) for v in record)
+        if record in self._records:
+            return False
+        self._records.add(record)
+        self._dirty = True
+        return True
+
+    @property
+    def record_count(self) -> int:
+        return len(self._records)
+
+    def records(self) -> frozenset[TopoRecord]:
+        return frozenset(self._records)
+
+    def _ensure_built(self) -> None:
+        if not self._dirty:
+            return
+        self._dirty = False
+        rec = np.array(sorted(self._records), np.int64).reshape(-1, 6)
+        vx, vy, _vz, ids, e, edges, lengths = fold_records(rec, self.d_build_cm, self.d_connect_cm)
+        self._xy_m = np.column_stack([vx, vy]).astype(np.float64) / 100.0
+        self._ids = ids
+        self._e_code = e
+        self.edges = edges
+        n = len(vx)
+        # Symmetric CSR, neighbours in ascending order so Dijkstra's ties are reproducible.
+        src = np.concatenate([edges[:, 0], edges[:, 1]])
+        dst = np.concatenate([edges[:, 1], edges[:, 0]])
+        w = np.concatenate([lengths, lengths]) / 100.0
+        order = np.lexsort((dst, src))
+        indptr = np.zeros(n + 1, np.int64)
+        np.cumsum(np.bincount(src, minlength=n), out=indptr[1:])
+        self._csr = (indptr, dst[order].astype(np.int64), w[order])
+
+    # --- the map --------------------------------------------------------------------
     def __len__(self) -> int:
-        return len(self.vertices)
+        self._ensure_built()
+        return len(self._xy_m)
 
     def positions(self) -> np.ndarray:
-        return self._xy
+        """Vertex positions in metres, (n, 2)."""
+        self._ensure_built()
+        return self._xy_m
+
+    def e_inf_codes(self) -> np.ndarray:
+        self._ensure_built()
+        return self._e_code
+
+    def visited_by(self, robot_id: int) -> np.ndarray:
+        """Per vertex: did robot_id report its presence there?"""
+        self._ensure_built()
+        word = self._ids[:, robot_id >> 6]
+        return (word >> np.uint64(robot_id & 63)) & np.uint64(1) == np.uint64(1)
 
     def nearest(self, x_m: float, y_m: float) -> int | None:
-        if not self.vertices:
+        xy = self.positions()
+        if len(xy) == 0:
             return None
-        d2 = (self._xy[:, 0] - x_m) ** 2 + (self._xy[:, 1] - y_m) ** 2
-        return int(np.argmin(d2))  # argmin takes the lowest index on ties: deterministic
+        return int(np.argmin((xy[:, 0] - x_m) ** 2 + (xy[:, 1] - y_m) ** 2))
 
-    def apply(self, sender_id: int, x_m: float, y_m: float, z_m: float, presence: bool, e_inf_bit: float) -> int:
-        """Algorithm 1: merge a record into the closest vertex within d_build, else add a
-        vertex and connect it to every vertex within d_connect. Returns the vertex index."""
-        h = self.nearest(x_m, y_m)
-        if h is not None and math.hypot(self._xy[h, 0] - x_m, self._xy[h, 1] - y_m) < self.d_build_m:
-            v = self.vertices[h]
-            if presence:
-                v.ids.add(sender_id)
-            v.e_inf_bit = e_inf_bit
-            return h
-        v = Vertex(x_m, y_m, z_m, {sender_id} if presence else set(), e_inf_bit)
-        k = len(self.vertices)
-        self.vertices.append(v)
-        d = np.hypot(self._xy[:, 0] - x_m, self._xy[:, 1] - y_m) if k else np.zeros(0)
-        self._xy = np.vstack([self._xy, [[x_m, y_m]]])
-        self.graph.add_node(k)
-        for other in np.nonzero(d <= self.d_connect_m)[0]:
-            self.graph.add_edge(k, int(other), weight=float(d[other]))
-        return k
-
-    def costs_from(self, x_m: float, y_m: float) -> tuple[int | None, dict[int, float]]:
-        """Graph distance from the vertex nearest to (x, y) to every vertex it reaches."""
+    def costs_from(self, x_m: float, y_m: float) -> tuple[int | None, np.ndarray, np.ndarray]:
+        """(source vertex, graph distance in m to every vertex (inf if unreached), parents)
+        from the vertex nearest to (x, y)."""
         src = self.nearest(x_m, y_m)
         if src is None:
-            return None, {}
-        return src, nx.single_source_dijkstra_path_length(self.graph, src, weight="weight")
+            return None, np.zeros(0), np.zeros(0, np.int64)
+        dist, parent = dijkstra_csr(*self._csr, src)
+        return src, dist, parent
 
-    def cost_to(self, costs: dict[int, float], x_m: float, y_m: float) -> tuple[float, int | None]:
-        """Cost from the robot to a point beyond its local map: graph distance to the reached
-        vertex closest to the point plus the straight line from there; when the graph is
-        disconnected this falls back to the closest vertex the robot can reach."""
-        if not costs:
+    def cost_to(self, dist: np.ndarray, x_m: float, y_m: float) -> tuple[float, int | None]:
+        """Cost to a point off the graph: graph distance to the reached vertex closest to the
+        point, plus the straight line from there. When the graph is disconnected this falls
+        back to the closest vertex the robot can reach."""
+        reached = np.isfinite(dist)
+        if not reached.any():
             return math.inf, None
-        idx = np.fromiter(costs.keys(), np.int64, len(costs))
-        g = np.fromiter(costs.values(), np.float64, len(costs))
-        e = np.hypot(self._xy[idx, 0] - x_m, self._xy[idx, 1] - y_m)
-        k = int(np.argmin(e + 1e-9 * idx))  # closest reached vertex; lowest index on ties
-        return float(g[k] + e[k]), int(idx[k])
+        xy = self.positions()
+        line = np.hypot(xy[:, 0] - x_m, xy[:, 1] - y_m)
+        line[~reached] = np.inf
+        k = int(np.argmin(line))
+        return float(dist[k] + line[k]), k
 
-    def path(self, src: int, dst: int) -> list[int]:
-        return nx.dijkstra_path(self.graph, src, dst, weight="weight")
+    @staticmethod
+    def path(parent: np.ndarray, dst: int) -> list[int]:
+        out = [dst]
+        while parent[out[-1]] >= 0:
+            out.append(int(parent[out[-1]]))
+        out.reverse()
+        return out

@@ -8,6 +8,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
 
 ROBOT_COLOURS = plt.get_cmap("tab10").colors
 
@@ -44,9 +45,9 @@ def plot_mission(result, path: Path) -> None:
     for i, agent in enumerate(result.agents):
         c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
         xy = agent.topo.positions()
-        for a, b in agent.topo.graph.edges():
-            ax.plot([xy[a, 0], xy[b, 0]], [xy[a, 1], xy[b, 1]], color=c, lw=0.5, alpha=0.6)
-        e = np.array([v.e_inf_bit for v in agent.topo.vertices])
+        segments = xy[agent.topo.edges] if len(agent.topo.edges) else np.zeros((0, 2, 2))
+        ax.add_collection(LineCollection(segments, colors=[c], linewidths=0.5, alpha=0.6))
+        e = agent.topo.e_inf_codes()
         if len(xy):
             ax.scatter(xy[:, 0], xy[:, 1], s=4, color=c, label=f"robot {i}: {len(xy)} vertices")
             open_ = e > 0

@@ -32,22 +32,6 @@ def test_tick_period_is_the_fastest_rate():
     assert TaskRates().tick_period_us == 50_000
 
 
-def test_topo_map_algorithm_1_merges_close_records_and_connects_neighbours():
-    t = TopoMap(d_build_m=1.0, d_connect_m=2.5)
-    a = t.apply(1, 0.0, 0.0, 0.0, True, 10.0)
-    b = t.apply(1, 2.0, 0.0, 0.0, True, 5.0)
-    same = t.apply(2, 0.5, 0.0, 0.0, True, 0.0)   # within d_build of vertex a: merged
-    far = t.apply(1, 10.0, 0.0, 0.0, True, 0.0)   # beyond d_connect of everything: isolated
-    assert same == a and len(t) == 3
-    assert t.vertices[a].ids == {1, 2} and t.vertices[a].e_inf_bit == 0.0
-    assert t.graph.has_edge(a, b) and t.graph.degree(far) == 0
-    src, costs = t.costs_from(0.1, 0.0)
-    assert src == a and costs[b] == 2.0 and far not in costs
-    # Disconnected graph: the cost falls back to the closest vertex the robot reaches.
-    cost, via = t.cost_to(costs, 10.0, 0.0)
-    assert via == b and cost == 2.0 + 8.0
-
-
 def test_bin_scan_by_bearing_rotates_into_the_world_frame():
     ranges = np.full(360, 5.0)
     ranges[0] = 1.0  # the beam straight ahead

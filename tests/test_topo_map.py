@@ -1,0 +1,109 @@
+"""The topological map: Algorithm 1 against a plain reference, graph costs against
+networkx, and the map as a pure function of the record SET (order, duplicates)."""
+import math
+
+import networkx as nx
+import numpy as np
+from hypothesis import given, settings, strategies as st
+
+from firmware.topo_map import TopoMap, fold_records
+
+SETTINGS = settings(max_examples=60, deadline=None)
+
+records = st.lists(
+    st.tuples(st.integers(0, 200), st.integers(-800, 800), st.integers(-800, 800), st.just(0),
+              st.integers(0, 1), st.integers(0, 255)),
+    min_size=1, max_size=60)
+
+
+def reference_fold(recs, d_build_cm, d_connect_cm):
+    """Algorithm 1 as printed, with a brute-force closest vertex and e_inf = min."""
+    verts = []  # [x, y, ids, e]
+    edges = set()
+    for sender, x, y, _z, presence, e in recs:
+        if verts:
+            d = [math.hypot(v[0] - x, v[1] - y) for v in verts]
+            h = min(range(len(verts)), key=lambda k: (d[k], k))
+            if d[h] < d_build_cm:
+                if presence:
+                    verts[h][2].add(sender)
+                verts[h][3] = min(verts[h][3], e)
+                continue
+        k = len(verts)
+        for u, v in enumerate(verts):
+            if math.hypot(v[0] - x, v[1] - y) <= d_connect_cm:
+                edges.add((k, u))
+        verts.append([x, y, {sender} if presence else set(), e])
+    return verts, edges
+
+
+@SETTINGS
+@given(records)
+def test_fold_matches_algorithm_1_reference(recs):
+    rec = np.array(recs, np.int64)
+    vx, vy, _vz, ids, e, edges, lengths = fold_records(rec, 100, 250)
+    verts, ref_edges = reference_fold(recs, 100, 250)
+    assert [(v[0], v[1], v[3]) for v in verts] == list(zip(vx.tolist(), vy.tolist(), e.tolist()))
+    for k, v in enumerate(verts):
+        got = {s for s in range(256) if (int(ids[k, s >> 6]) >> (s & 63)) & 1}
+        assert got == v[2]
+    assert {tuple(x) for x in edges.tolist()} == ref_edges
+
+
+@SETTINGS
+@given(records, st.randoms(use_true_random=False), st.data())
+def test_map_is_a_function_of_the_record_set(recs, rnd, data):
+    a = TopoMap(1.0, 2.5)
+    for r in recs:
+        a.add(r)
+    shuffled = list(recs) + data.draw(st.lists(st.sampled_from(recs), max_size=20))  # duplicates
+    rnd.shuffle(shuffled)
+    b = TopoMap(1.0, 2.5)
+    for r in shuffled:
+        b.add(r)
+    assert np.array_equal(a.positions(), b.positions())
+    assert np.array_equal(a.e_inf_codes(), b.e_inf_codes())
+    assert np.array_equal(a.edges, b.edges)
+    for robot in {r[0] for r in recs}:
+        assert np.array_equal(a.visited_by(robot), b.visited_by(robot))
+    x, y = data.draw(st.floats(-8, 8)), data.draw(st.floats(-8, 8))
+    sa, da, _ = a.costs_from(x, y)
+    sb, db, _ = b.costs_from(x, y)
+    assert sa == sb and np.array_equal(da, db)
+
+
+@SETTINGS
+@given(records, st.data())
+def test_graph_costs_match_networkx(recs, data):
+    t = TopoMap(1.0, 2.5)
+    for r in recs:
+        t.add(r)
+    xy = t.positions()
+    g = nx.Graph()
+    g.add_nodes_from(range(len(xy)))
+    for u, v in t.edges.tolist():
+        g.add_edge(u, v, weight=math.hypot(*(xy[u] - xy[v])))
+    src = data.draw(st.integers(0, len(xy) - 1))
+    src_found, dist, parent = t.costs_from(*xy[src])
+    expected = nx.single_source_dijkstra_path_length(g, src_found, weight="weight")
+    for v in range(len(xy)):
+        if v in expected:
+            assert math.isclose(dist[v], expected[v], rel_tol=1e-9, abs_tol=1e-9)
+            assert t.path(parent, v)[0] == src_found
+        else:
+            assert math.isinf(dist[v])
+
+
+def test_algorithm_1_merges_close_records_and_falls_back_when_disconnected():
+    t = TopoMap(d_build_m=1.0, d_connect_m=2.5)
+    t.add((1, 0, 0, 0, 1, 10))
+    t.add((1, 200, 0, 0, 1, 5))
+    t.add((2, 50, 0, 0, 1, 0))      # within d_build of (0, 0): merged, e_inf drops to 0
+    t.add((1, 1000, 0, 0, 1, 0))    # beyond d_connect of everything: an island
+    assert len(t) == 3
+    assert t.visited_by(2).tolist() == [True, False, False]
+    assert t.e_inf_codes().tolist() == [0, 5, 0]
+    src, dist, _ = t.costs_from(0.1, 0.0)
+    assert src == 0 and dist[1] == 2.0 and math.isinf(dist[2])
+    cost, via = t.cost_to(dist, 10.0, 0.0)
+    assert via == 1 and cost == 2.0 + 8.0
