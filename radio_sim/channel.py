@@ -11,12 +11,14 @@ Model (LoRaSim, Bor et al. 2016, `full_collision` mode; ns-3 lorawan):
   time is judged by power at that receiver: under 6 dB apart both are lost, otherwise the
   weaker is lost (capture). An interferer below the receiver's sensitivity is ignored.
 - Fates at a receiver, first match wins: half_duplex (the receiver transmitted during any
-  part of the frame), out_of_range (RSSI below sensitivity), not_listening (the receiver was
-  not armed from the frame's start to its end), collided, then injected faults
-  (injected_loss, corrupted), else received.
+  part of the frame), out_of_range (RSSI below sensitivity), not_listening (not armed when
+  the frame started), collided, not_listening (armed at the start but disarmed before the
+  end: another frame was delivered first, or the receiver was stopped), then injected
+  faults (injected_loss, corrupted), else received.
 - Reception is one-shot like the RN2483's `radio rx 0`: a delivered frame (received or
   corrupted) disarms the receiver until `set_listening(node, True)`. Transmitting disarms it
-  too (the RN2483 leaves receive mode to send). Nodes are armed when attached.
+  too (the RN2483 leaves receive mode to send); arming while transmitting takes effect when
+  the frame ends. Nodes are armed when attached.
 - The `ideal` profile (Bayer & Faigl): every other attached node receives every frame,
   regardless of range, walls, collisions, half duplex or arming; injected faults, if any
   were asked for, still apply. The armed state is tracked the same way so modem emulators
@@ -68,6 +70,7 @@ class _Frame:
     payload: bytes
     # receiver id -> (rssi_dbm, snr_db), ascending receiver id; every node attached at the start
     link: dict[int, tuple[float, float]]
+    armed_at_start: set[int]
 
 
 @dataclass(eq=False)
@@ -76,6 +79,7 @@ class _Node:
     position_fn: Callable[[], tuple[float, float]]
     listen_since_us: int | None      # armed since this time; None = not armed
     tx_frame: _Frame | None = None
+    arm_after_tx: bool = False        # set_listening(True) arrived while transmitting
     events: list[RadioEvent] = field(default_factory=list)
     # duplicates that came due while the node was not armed: (payload, rssi_dbm, snr_db)
     waiting_duplicates: deque = field(default_factory=deque)
@@ -134,10 +138,12 @@ class Channel:
         if node.tx_frame is not None or len(payload) > self.profile.max_payload_bytes:
             return None
         end_us = now_us + self.profile.airtime_us(len(payload))
-        frame = _Frame(self._seq, node.node_id, now_us, end_us, payload, self._links_from(node))
+        armed = {n.node_id for n in self._nodes.values() if n.listen_since_us is not None and n is not node}
+        frame = _Frame(self._seq, node.node_id, now_us, end_us, payload, self._links_from(node), armed)
         self._seq += 1
         node.tx_frame = frame
         node.listen_since_us = None
+        node.arm_after_tx = False
         self._window.append(frame)
         self._unresolved[frame.seq] = frame
         heapq.heappush(self._heap, (end_us, _FRAME_END, node.node_id, frame.seq, frame))
@@ -148,20 +154,14 @@ class Channel:
         node = self._node(node_id)
         if not listening:
             node.listen_since_us = None
+            node.arm_after_tx = False
             return
         if node.tx_frame is not None:
-            raise ValueError(
-                f"node {node_id} cannot arm its receiver at {now_us} us: it is transmitting "
-                f"until {node.tx_frame.end_us} us (an RN2483 answers 'busy')"
-            )
-        if node.listen_since_us is not None:
-            return  # already armed: keep the original arming time
-        if node.waiting_duplicates:
-            payload, rssi_dbm, snr_db = node.waiting_duplicates.popleft()
-            self._deliver(node, RadioRxFrame(now_us, payload, rssi_dbm, snr_db))
-            self._counts["duplicates_delivered"] += 1
+            # The transmitter and receiver share one front end: the arming takes effect when
+            # the frame is out (a virtual modem reset mid-frame can ask for this).
+            node.arm_after_tx = True
             return
-        node.listen_since_us = now_us
+        self._arm(node, now_us)
 
     def advance_to(self, now_us: int) -> None:
         if now_us < self._now_us:
@@ -244,8 +244,7 @@ class Channel:
                 return HALF_DUPLEX
         if rssi_dbm < self.sensitivity_dbm:
             return OUT_OF_RANGE
-        armed_since = self._nodes[rid].listen_since_us
-        if armed_since is None or armed_since > frame.start_us:
+        if rid not in frame.armed_at_start:
             return NOT_LISTENING
         for other in self._window:
             if other is frame or other.sender_id == frame.sender_id:
@@ -261,12 +260,20 @@ class Channel:
             margin_db = rssi_dbm - other_link[0]
             if margin_db < CAPTURE_THRESHOLD_DB:  # under 6 dB apart, or the weaker one
                 return COLLIDED
+        # Armed at the start, but the one-shot receiver was taken by another frame (or
+        # stopped) before this one ended.
+        armed_since = self._nodes[rid].listen_since_us
+        if armed_since is None or armed_since > frame.start_us:
+            return NOT_LISTENING
         return RECEIVED
 
     def _resolve(self, frame: _Frame) -> None:
         sender = self._nodes[frame.sender_id]
         sender.tx_frame = None
         sender.events.append(RadioTxDone(frame.end_us, True))
+        if sender.arm_after_tx:
+            sender.arm_after_tx = False
+            self._arm(sender, frame.end_us)
         receptions: list[Reception] = []
         for rid, (rssi_dbm, snr_db) in frame.link.items():
             fate = self._physical_fate(frame, rid, rssi_dbm)
@@ -303,6 +310,19 @@ class Channel:
         )
         for sink in self._sinks:
             sink(air)
+
+    def _arm(self, node: _Node, now_us: int) -> None:
+        if node.listen_since_us is not None:
+            return  # already armed: keep the original arming time
+        for frame in self._unresolved.values():
+            if frame.start_us == now_us and frame.sender_id != node.node_id:
+                frame.armed_at_start.add(node.node_id)  # armed in the same microsecond
+        if node.waiting_duplicates:
+            payload, rssi_dbm, snr_db = node.waiting_duplicates.popleft()
+            self._deliver(node, RadioRxFrame(now_us, payload, rssi_dbm, snr_db))
+            self._counts["duplicates_delivered"] += 1
+            return
+        node.listen_since_us = now_us
 
     def _deliver(self, node: _Node, event: RadioRxFrame) -> None:
         node.events.append(event)
