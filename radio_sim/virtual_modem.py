@@ -117,6 +117,7 @@ class ModemBank:
         self._closed = False
         self.commands_served = 0
         self._thread: threading.Thread | None = None
+        self._thread_error: BaseException | None = None
         if lockstep:
             self._thread = threading.Thread(target=self._service_thread, name="rn2483-bank", daemon=True)
             self._thread.start()
@@ -134,6 +135,8 @@ class ModemBank:
     def advance_to(self, now_us: int) -> None:
         """Move the bank and the Channel to `now_us`: frames that ended and module timers
         that fell due are resolved in time order and their lines queued to the clients."""
+        if self._thread_error is not None:
+            raise RuntimeError(f"virtual modem service thread failed: {self._thread_error!r}") from self._thread_error
         with self._lock:
             if now_us < self._now_us:
                 raise ValueError(f"time runs forwards: advance_to({now_us}) after {self._now_us}")
@@ -291,8 +294,11 @@ class ModemBank:
             self._flush_all()
 
     def _service_thread(self) -> None:
-        while not self._closed:
-            self._service_once(None)
+        try:
+            while not self._closed:
+                self._service_once(None)
+        except BaseException as e:  # surfaced to the runner by the next advance_to
+            self._thread_error = e
 
     def _wake(self) -> None:
         try:
@@ -309,3 +315,24 @@ class ModemBank:
                     os.close(fd)
                 except OSError:
                     pass
+
+
+def open_serial_radios(channel, profile: RadioProfile, clock, node_ids: Sequence[int],
+                       **modem_kwargs) -> tuple[ModemBank, list]:
+    """Lockstep serial radios for a mission: one virtual modem per node id (already attached
+    to `channel`), each driven by hal.rn2483.Rn2483Modem over its pty with the poll barrier
+    on. Returns (bank, radios); call bank.advance_to(clock.now_us()) before each round of
+    firmware ticks, and bank.close() (after closing the radios) at the end."""
+    from hal.rn2483 import Rn2483Modem
+
+    bank = ModemBank(channel, profile, node_ids, start_us=clock.now_us())
+    radios: list = []
+    try:
+        for path in bank.paths:
+            radios.append(Rn2483Modem(path, profile, clock, sync_poll=True, **modem_kwargs))
+    except BaseException:
+        for r in radios:
+            r.close()
+        bank.close()
+        raise
+    return bank, radios
