@@ -75,6 +75,7 @@ class LinkLayer:
         self._budget_us = (None if profile.duty_cycle is None
                            else round(profile.duty_cycle * profile.duty_cycle_window_us))
         self._tx_log: deque[tuple[int, int]] = deque()   # own (start_us, end_us), this sub-band
+        self._log_total_us = 0
         self._seq = first_seq % SEQ_MODULUS
         self._order = 0
         # queue entries: [priority, order, type name, record bytes, key]
@@ -176,6 +177,7 @@ class LinkLayer:
         if self._rate_Bps is not None:
             self._tokens -= len(frame)
         self._tx_log.append((now_us, now_us + airtime_us))
+        self._log_total_us += airtime_us
         self._counters["sent.frames"] += 1
         self._counters["sent.bytes"] += len(frame)
         self._counters[self._airtime_key] += airtime_us
@@ -200,8 +202,20 @@ class LinkLayer:
         return frame, taken
 
     def _window_use_us(self, window_end_us: int) -> int:
+        """Own airtime inside [end - W, end]. The log is in time order and pruned to the last
+        W, so only its first entries can straddle the window start and only its last entry
+        can run past the end: O(1) per call instead of O(frames per hour)."""
         start = window_end_us - self.profile.duty_cycle_window_us
-        return sum(max(0, min(e, window_end_us) - max(s, start)) for s, e in self._tx_log)
+        use = self._log_total_us
+        for s, e in self._tx_log:
+            if s >= start:
+                break
+            use -= min(e, start) - s
+        for s, e in reversed(self._tx_log):
+            if e <= window_end_us:
+                break
+            use -= e - max(s, window_end_us)
+        return use
 
     def _duty_cycle_ok(self, now_us: int, airtime_us: int) -> bool:
         """ETSI: own transmit time in ANY window of length W must stay <= duty_cycle * W.
@@ -213,7 +227,8 @@ class LinkLayer:
             return True
         horizon = now_us - self.profile.duty_cycle_window_us
         while self._tx_log and self._tx_log[0][1] <= horizon:
-            self._tx_log.popleft()
+            s, e = self._tx_log.popleft()
+            self._log_total_us -= e - s
         return self._window_use_us(now_us + airtime_us) + airtime_us <= self._budget_us
 
     def _refill(self, now_us: int) -> None:

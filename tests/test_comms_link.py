@@ -1,0 +1,285 @@
+"""Link layer against a fake RadioModem: aggregation, priorities, duty cycle, rate cap,
+duplicates, relay, drops, determinism."""
+import dataclasses
+
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from firmware.comms.frame import decode_frame, encode_frame, with_hops
+from firmware.comms.link import LinkLayer, counter_names
+from hal.interfaces import RadioModem
+from hal.lora import profile
+from hal.samples import RadioRxFrame, RadioTxDone
+
+
+class FakeRadio:
+    """Half-duplex modem stand-in: busy for the profile's airtime after transmit()."""
+
+    def __init__(self, prof, refuse=False):
+        self.prof, self.refuse = prof, refuse
+        self.now_us = 0
+        self.busy_until_us = 0
+        self.sent: list[tuple[int, bytes]] = []
+        self.inbox: list = []
+
+    def transmit(self, payload: bytes) -> bool:
+        if self.refuse or self.busy() or len(payload) > self.prof.max_payload_bytes:
+            return False
+        self.sent.append((self.now_us, payload))
+        self.busy_until_us = self.now_us + self.prof.airtime_us(len(payload))
+        self.inbox.append(RadioTxDone(self.busy_until_us, True))
+        return True
+
+    def busy(self) -> bool:
+        return self.now_us < self.busy_until_us
+
+    def poll(self):
+        out = tuple(e for e in self.inbox if e.stamp_us <= self.now_us)
+        self.inbox = [e for e in self.inbox if e.stamp_us > self.now_us]
+        return out
+
+    def deliver(self, payload: bytes) -> None:
+        self.inbox.append(RadioRxFrame(self.now_us, bytes(payload), -80.0, 7.5))
+
+
+def topo(i, sender=1):
+    return dict(sender_id=sender, x_cm=i, y_cm=-i, z_cm=0, presence=1, e_inf_code=i % 256)
+
+
+def pose(sender=1, x=0):
+    return dict(sender_id=sender, x_cm=x, y_cm=0, yaw_cdeg=0, speed_cmps=0, exploring=1, done=0,
+                returning=0, vertex_count=0)
+
+
+def step(link, radio, now_us):
+    radio.now_us = now_us
+    link.service(now_us, radio)
+
+
+def test_fake_radio_satisfies_the_hal_protocol():
+    assert isinstance(FakeRadio(profile("eu868-g3")), RadioModem)
+
+
+def test_counters_all_present_from_start():
+    link = LinkLayer(1, profile("eu868-g3"))
+    assert set(link.counters) == set(counter_names("g3"))
+    assert all(v == 0 for v in link.counters.values())
+    assert {"received.ok", "received.bad_crc", "received.out_of_range", "deferred.duty_cycle",
+            "airtime_us.g3", "dropped.too_large"} <= set(link.counters)
+
+
+def test_aggregates_up_to_max_payload_then_sends_the_rest():
+    prof = profile("eu868-g3")
+    link, radio = LinkLayer(1, prof), FakeRadio(prof)
+    for i in range(25):
+        assert link.enqueue("topo", topo(i))
+    step(link, radio, 0)
+    assert len(radio.sent) == 1 and len(radio.sent[0][1]) == 250      # 20 vertices, 12 B each
+    f = decode_frame(radio.sent[0][1]).frame
+    assert [v["x_cm"] for _, v in f.records] == list(range(20)) and f.seq == 0
+    step(link, radio, 1000)                       # still on the air
+    assert len(radio.sent) == 1 and link.counters["deferred.radio_busy"] == 1
+    step(link, radio, radio.busy_until_us)
+    f2 = decode_frame(radio.sent[1][1]).frame
+    assert [v["x_cm"] for _, v in f2.records] == list(range(20, 25)) and f2.seq == 1
+    c = link.counters
+    assert (c["sent.frames"], c["sent.records"], c["sent.bytes"]) == (2, 25, 250 + 8 + 1 + 60)
+    assert c["airtime_us.g3"] == prof.airtime_us(250) + prof.airtime_us(69)
+    assert c["tx_done.ok"] == 1 and link.queue_len == 0
+
+
+def test_priority_first_and_mixed_types_grouped():
+    prof = dataclasses.replace(profile("eu868-g3"), max_payload_bytes=8 + 1 + 12 + 1 + 12)
+    link, radio = LinkLayer(1, prof), FakeRadio(prof)
+    link.enqueue("topo", topo(1), priority=0)
+    link.enqueue("topo", topo(2), priority=0)
+    link.enqueue("pose", pose(x=5), priority=5)
+    step(link, radio, 0)
+    recs = decode_frame(radio.sent[0][1]).frame.records
+    assert [(n, v["x_cm"]) for n, v in recs] == [("topo", 1), ("pose", 5)]   # grouped by type code
+
+
+def test_key_supersedes_older_record():
+    prof = profile("eu868-g3")
+    link, radio = LinkLayer(1, prof), FakeRadio(prof)
+    link.enqueue("pose", pose(x=1), key="pose")
+    link.enqueue("pose", pose(x=2), key="pose")
+    assert link.queue_len == 1 and link.counters["superseded"] == 1
+    step(link, radio, 0)
+    assert [v["x_cm"] for _, v in decode_frame(radio.sent[0][1]).frame.records] == [2]
+
+
+def test_queue_full_and_too_large():
+    prof = profile("eu868-g3")
+    link = LinkLayer(1, prof, queue_limit=2)
+    assert link.enqueue("topo", topo(1)) and link.enqueue("topo", topo(2))
+    assert not link.enqueue("topo", topo(3))                 # no better than what waits
+    assert link.enqueue("topo", topo(4), priority=1)          # evicts the oldest least important
+    assert link.counters["dropped.queue_full"] == 2 and link.queue_len == 2
+    small = dataclasses.replace(prof, max_payload_bytes=20)
+    tiny = LinkLayer(1, small)
+    assert not tiny.enqueue("topo", topo(1)) and tiny.counters["dropped.too_large"] == 1
+    assert tiny.enqueue("target", dict(sender_id=1, x_cm=0, y_cm=0, path_cost_dm=0, claimed=1, e_inf_code=0))
+    with pytest.raises(ValueError, match="x_cm"):
+        link.enqueue("topo", topo(1 << 24))
+
+
+def _brute_window_max_us(log, window_us):
+    """Reference: largest own airtime in any window of length W (the max is reached with a
+    window ending at some frame end)."""
+    best = 0
+    for _, end in log:
+        start = end - window_us
+        best = max(best, sum(max(0, min(e, end) - max(s, start)) for s, e in log))
+    return best
+
+
+def test_duty_cycle_holds_in_every_one_hour_window():
+    prof = profile("eu868-g1")                 # 1 %: 36 s per hour
+    link, radio = LinkLayer(1, prof), FakeRadio(prof)
+    log = []
+    for t_s in range(0, 2 * 3600 + 1):        # a record a second for two hours
+        link.enqueue("pose", pose(x=t_s), key="pose")
+        n = len(radio.sent)
+        step(link, radio, t_s * 1_000_000)
+        if len(radio.sent) > n:
+            log.append((radio.now_us, radio.busy_until_us))
+    c = link.counters
+    assert c["deferred.duty_cycle"] > 0
+    assert _brute_window_max_us(log, prof.duty_cycle_window_us) <= 36_000_000
+    first_hour = sum(e - s for s, e in log if e <= 3600_000_000)
+    assert first_hour > 0.95 * 36_000_000       # the budget is used, not wasted
+    assert c["airtime_us.g1"] == sum(e - s for s, e in log)
+    assert link.duty_cycle_headroom_us(2 * 3600 * 1_000_000) >= 0
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 40), st.integers(1, 30)), min_size=1, max_size=60))
+def test_window_sum_matches_plain_reference(events):
+    """The O(1) window sum equals the obvious sum over the log, for arbitrary send times."""
+    prof = dataclasses.replace(profile("eu868-g1"), duty_cycle=0.05, duty_cycle_window_us=10_000_000)
+    link, radio = LinkLayer(1, prof), FakeRadio(prof)
+    now, log = 0, []
+    for gap_ds, n_records in events:
+        now += gap_ds * 100_000
+        for i in range(n_records):
+            link.enqueue("topo", topo(i))
+        k = len(radio.sent)
+        step(link, radio, now)
+        if len(radio.sent) > k:
+            log.append((radio.now_us, radio.busy_until_us))
+        for probe in (now, now + 123_456):
+            want = sum(max(0, min(e, probe) - max(s, probe - 10_000_000)) for s, e in log)
+            assert link._window_use_us(probe) == want
+    assert _brute_window_max_us(log, 10_000_000) <= 500_000
+
+
+def test_byte_rate_cap_token_bucket():
+    prof = profile("eu868-g3")
+    link, radio = LinkLayer(1, prof, byte_rate_cap_Bps=20.0), FakeRadio(prof)
+    for t_ms in range(0, 60_000, 10):
+        if link.queue_len < 20:
+            link.enqueue("topo", topo(t_ms % 1000))
+        step(link, radio, t_ms * 1000)
+    c = link.counters
+    assert c["deferred.rate_cap"] > 0
+    assert c["sent.bytes"] <= 20 * 60 + 255
+    assert c["sent.bytes"] >= 0.8 * 20 * 60
+
+
+def test_ideal_profile_takes_its_cap_and_inf_disables_it():
+    ideal = profile("ideal-100Bps")
+    assert LinkLayer(1, ideal)._rate_Bps == 100
+    assert LinkLayer(1, ideal, byte_rate_cap_Bps=float("inf"))._rate_Bps is None
+    assert LinkLayer(1, profile("eu868-g3"))._rate_Bps is None
+
+
+def test_radio_refusal_keeps_the_records():
+    prof = profile("eu868-g3")
+    link, radio = LinkLayer(1, prof), FakeRadio(prof, refuse=True)
+    link.enqueue("topo", topo(1))
+    step(link, radio, 0)
+    assert link.queue_len == 1 and link.counters["deferred.radio_busy"] == 1 and link.next_seq == 0
+
+
+def test_duplicates_suppressed_with_rfc1982_wrap():
+    prof = profile("eu868-g3")
+    link, radio = LinkLayer(2, prof), FakeRadio(prof)
+    seqs = [65534, 65535, 0, 1, 65535, 1, 0, 3, 2, 2]
+    for s in seqs:
+        radio.deliver(encode_frame(7, s, [("topo", topo(s % 100, sender=7))]))
+    step(link, radio, 0)
+    got = link.received()
+    assert [v["x_cm"] for _, _, v in got] == [s % 100 for s in (65534, 65535, 0, 1, 3, 2)]
+    assert all(sender == 7 and name == "topo" for sender, name, _ in got)
+    c = link.counters
+    assert (c["received.ok"], c["received.duplicate"], c["received.records"]) == (6, 4, 6)
+    assert link.received() == []
+    # A restart (seq far behind the window) is accepted and restarts the window.
+    radio.deliver(encode_frame(7, 1000, [("topo", topo(1, sender=7))]))
+    radio.deliver(encode_frame(7, 1000, [("topo", topo(1, sender=7))]))
+    step(link, radio, 1)
+    assert len(link.received()) == 1 and link.counters["received.duplicate"] == 5
+
+
+def test_bad_frames_counted_by_reason_and_own_frames_ignored():
+    prof = profile("eu868-g3")
+    link, radio = LinkLayer(2, prof), FakeRadio(prof)
+    good = encode_frame(7, 1, [("topo", topo(1, sender=7))])
+    radio.deliver(good[:-1] + bytes([good[-1] ^ 0xFF]))
+    radio.deliver(good[:4])
+    radio.deliver(b"\x00" * 30)
+    radio.deliver(good + b"x")
+    radio.deliver(encode_frame(2, 9, [("topo", topo(1, sender=2))]))
+    step(link, radio, 0)
+    c = link.counters
+    assert (c["received.bad_crc"], c["received.truncated"], c["received.unknown_version"],
+            c["received.bad_length"], c["received.own"], c["received.ok"]) == (1, 1, 1, 1, 1, 0)
+    assert link.received() == []
+
+
+def test_relay_off_by_default_and_managed_flood_when_on():
+    prof = profile("eu868-g3")
+    plain, plain_radio = LinkLayer(2, prof), FakeRadio(prof)
+    plain_radio.deliver(encode_frame(7, 1, [("topo", topo(1, sender=7))], hops_left=3))
+    step(plain, plain_radio, 0)
+    assert plain_radio.sent == [] and plain.counters["relayed"] == 0
+
+    origin = LinkLayer(7, prof, relay_hop_limit=2)
+    o_radio = FakeRadio(prof)
+    origin.enqueue("topo", topo(1, sender=7))
+    step(origin, o_radio, 0)
+    original = o_radio.sent[0][1]
+    assert decode_frame(original).frame.hops_left == 2
+
+    relay, r_radio = LinkLayer(3, prof, relay_hop_limit=2), FakeRadio(prof)
+    r_radio.deliver(original)
+    r_radio.deliver(original)                         # heard twice: relayed once
+    step(relay, r_radio, 0)
+    assert len(r_radio.sent) == 1 and relay.counters["relayed"] == 1
+    f = decode_frame(r_radio.sent[0][1]).frame
+    assert (f.sender_id, f.seq, f.hops_left, f.hops_taken) == (7, 0, 1, 1)
+    assert r_radio.sent[0][1] == with_hops(original, 1, 1)
+    assert relay.next_seq == 0                        # relays do not use our sequence numbers
+
+    far, f_radio = LinkLayer(4, prof, relay_hop_limit=2), FakeRadio(prof)
+    f_radio.deliver(r_radio.sent[0][1])
+    f_radio.deliver(original)
+    step(far, f_radio, 0)
+    assert far.counters["received.ok"] == 1 and far.counters["received.duplicate"] == 1
+    assert len(far.received()) == 1
+    last = decode_frame(f_radio.sent[0][1]).frame
+    assert (last.hops_left, last.hops_taken) == (0, 2)       # and nobody relays it again
+
+
+def test_deterministic_bytes():
+    def run():
+        prof = profile("eu868-g1")
+        link, radio = LinkLayer(5, prof, byte_rate_cap_Bps=30.0), FakeRadio(prof)
+        for t in range(0, 600):
+            link.enqueue("topo", topo(t), priority=t % 3)
+            if t % 7 == 0:
+                link.enqueue("pose", pose(5, t), key="pose", priority=9)
+            step(link, radio, t * 250_000)
+        return radio.sent, link.counters
+    assert run() == run()
