@@ -106,6 +106,7 @@ class ModemBank:
             raise
         # A module after power-on is not receiving (the Channel arms nodes when attached);
         # the driver's `radio rx 0` arms them again at its own time.
+        start_us = max(start_us, getattr(channel, "now_us", start_us))
         for n in self.node_ids:
             channel.set_listening(n, False, start_us)
         self._by_master = {p.master: i for i, p in enumerate(self._ptys)}

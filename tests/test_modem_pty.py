@@ -108,7 +108,7 @@ def test_our_backend_over_the_wall_clock_server():
         assert server.stop() == 0
 
 
-def _in_thread(fn, timeout_s: float):
+def _in_thread(fn):
     box: dict = {}
 
     def run():
@@ -151,7 +151,7 @@ def test_third_party_loranode_library_transmits_and_receives():
             assert [f.payload for f in frames] == [b"LibToOurs"]
 
             # our backend -> library (recv_p2p blocks in `radio rx 0` until a frame comes)
-            t, box = _in_thread(lib.recv_p2p, 10)
+            t, box = _in_thread(lib.recv_p2p)
             deadline = time.monotonic() + 8
             while t.is_alive() and time.monotonic() < deadline:
                 if not ours.busy():
