@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import heapq
 import math
+import operator
 from collections import deque
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -117,6 +118,7 @@ class Channel:
         self._sinks: list[Callable[[AirFrame], None]] = []
         self._counts: dict[str, int] = {f: 0 for f in FATES}
         self._counts.update(frames=0, duplicates_delivered=0)
+        self._airtime_us: dict[int, int] = {}
 
     # -- set-up ------------------------------------------------------------------------------
 
@@ -125,6 +127,7 @@ class Channel:
             raise ValueError(f"node {node_id} is already attached to the channel")
         # Armed from "now": a frame already on the air has no reception record for it.
         self._nodes[node_id] = _Node(int(node_id), position_fn, listen_since_us=self._now_us)
+        self._airtime_us[node_id] = 0
 
     def add_sink(self, fn: Callable[[AirFrame], None]) -> None:
         self._sinks.append(fn)
@@ -132,6 +135,9 @@ class Channel:
     # -- the contract ------------------------------------------------------------------------
 
     def transmit(self, node_id: int, payload: bytes, now_us: int) -> int | None:
+        """Start a frame now; its end time in us, or None (nothing sent) if the node is
+        already transmitting or the payload exceeds the profile's max_payload_bytes."""
+        now_us = operator.index(now_us)
         self.advance_to(now_us)
         node = self._node(node_id)
         payload = bytes(payload)
@@ -141,6 +147,7 @@ class Channel:
         armed = {n.node_id for n in self._nodes.values() if n.listen_since_us is not None and n is not node}
         frame = _Frame(self._seq, node.node_id, now_us, end_us, payload, self._links_from(node), armed)
         self._seq += 1
+        self._airtime_us[node.node_id] += end_us - now_us
         node.tx_frame = frame
         node.listen_since_us = None
         node.arm_after_tx = False
@@ -150,6 +157,8 @@ class Channel:
         return end_us
 
     def set_listening(self, node_id: int, listening: bool, now_us: int) -> None:
+        """Arm (one-shot) or disarm the node's receiver."""
+        now_us = operator.index(now_us)
         self.advance_to(now_us)
         node = self._node(node_id)
         if not listening:
@@ -164,8 +173,12 @@ class Channel:
         self._arm(node, now_us)
 
     def advance_to(self, now_us: int) -> None:
+        """Resolve every frame (and injected duplicate) due at or before now_us, in order of
+        time, then sender id. O(1) when nothing is due."""
         if now_us < self._now_us:
             raise ValueError(f"channel time went backwards: {now_us} us after {self._now_us} us")
+        if now_us.__class__ is not int:
+            now_us = operator.index(now_us)   # integer microseconds only (numpy ints accepted)
         self._now_us = now_us
         heap = self._heap
         while heap and heap[0][0] <= now_us:
@@ -210,6 +223,11 @@ class Channel:
         """Receptions per fate over all finished frames, plus `frames` (finished frames) and
         `duplicates_delivered` (injected duplicate copies handed to a receiver)."""
         return dict(self._counts)
+
+    def airtime_us_by_node(self) -> dict[int, int]:
+        """Total time on air each node has started so far (frames still on the air count in
+        full)."""
+        return dict(self._airtime_us)
 
     # -- internals ---------------------------------------------------------------------------
 

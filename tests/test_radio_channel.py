@@ -235,6 +235,12 @@ def test_refusals_and_time_errors():
         w.channel.transmit(9, b"x", 10)
     with pytest.raises(ValueError, match="already attached"):
         w.channel.attach(1, lambda: (0.0, 0.0))
+    with pytest.raises(TypeError):
+        w.channel.transmit(1, b"x", 10.5)
+    with pytest.raises(TypeError):
+        w.channel.advance_to(11.0)
+    w.channel.advance_to(np.int64(12))
+    assert w.channel.airtime_us_by_node() == {0: G1.airtime_us(255), 1: 0}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -376,6 +382,24 @@ def test_injected_faults_at_their_rates():
 def test_faults_off_means_no_faults():
     w, delivered = _fault_run(seed=11, n_frames=200, faults=FaultParams())
     assert w.channel.counters()[RECEIVED] == 200 and len(delivered) == 200
+
+
+def test_shadowing_spread_and_independent_of_fault_draws():
+    def run(shadowing_std_db):
+        faults = FaultParams(loss_probability=0.3)
+        w = World({0: (0.0, 0.0), 1: (10.0, 0.0)}, seed=4, faults=faults,
+                  propagation=PropagationParams(shadowing_std_db=shadowing_std_db))
+        for k in range(400):
+            w.channel.set_listening(0, True, k * 100_000)
+            w.channel.transmit(1, bytes(12), k * 100_000)
+        w.channel.advance_to(10 ** 9)
+        return [f.receptions[0] for f in w.frames]
+
+    plain, shadowed = run(0.0), run(4.0)
+    assert [r.fate for r in plain] == [r.fate for r in shadowed]   # same losses, same frames
+    deviation_db = np.array([s.rssi_dbm - p.rssi_dbm for p, s in zip(plain, shadowed)])
+    assert len({r.rssi_dbm for r in plain}) == 1
+    assert abs(deviation_db.mean()) < 0.6 and 3.5 < deviation_db.std() < 4.5
 
 
 def test_duplicate_waits_for_the_receiver_to_rearm():

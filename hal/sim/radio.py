@@ -8,6 +8,8 @@ firmware identical results:
   receiver unless the node is still transmitting. Frames that start while the receiver is
   disarmed (between a delivery or a transmission's end and the next poll) are missed, as
   they are on the real modem.
+- an injected duplicate (radio_sim.faults) is handed over when the receiver is armed, so
+  it uses up a one-shot reception like any frame and may show up one poll later.
 - `busy()` asks the channel (the one source of truth for who is on the air).
 """
 from __future__ import annotations
