@@ -16,6 +16,11 @@ poll() and busy() end with a `sys get ver` barrier and read up to its answer, so
 line the modem wrote before (all events up to the simulation time) has been read, no
 matter when the kernel hands pty bytes over. On real hardware leave it off: poll() then
 only takes what has already arrived.
+
+What the firmware sees differs from the in-process modem in two documented ways, both
+because a real module reports no more: RSSI and SNR are whole dB (`radio get rssi/snr`,
+asked right after each `radio_rx`), and an event's stamp_us is the clock time the line was
+read (in lockstep, the first tick at or after the frame's end), not the frame's end.
 """
 from __future__ import annotations
 

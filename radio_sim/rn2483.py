@@ -30,6 +30,8 @@ Deliberate simplifications (documented, not hidden):
 - `radio set pwr` is stored and reported; the Channel uses the profile's power.
 - A reception window (`radio rx N`, N > 0 symbols) closes after N symbol times; a frame
   counts only if it ends inside the window.
+- With an ideal profile (Bayer & Faigl's link) the Channel hands every frame to every node,
+  whatever it is doing, and the modem prints each one even outside `radio rx`.
 - A transmission longer than the watchdog is not put on the air at all (a real module
   would have sent a truncated frame that no receiver decodes) and ends in `radio_err`.
 """
@@ -129,8 +131,13 @@ class Rn2483:
     """One module. `command` answers a line, `deliver` takes a Channel event addressed to
     this node, `expire` fires the module's own timers (watchdog, rx window, off-air tx)."""
 
-    def __init__(self, node_id: int, port: AirPort | None = None, on_air: RadioSettings | None = None):
+    def __init__(self, node_id: int, port: AirPort | None = None, on_air: RadioSettings | None = None,
+                 *, ideal_link: bool = False):
         self.node_id = node_id
+        # The ideal link (Bayer & Faigl) hands every frame to every node, even one that is
+        # sending or not listening; the modem prints it all the same, so the serial path
+        # shows the firmware exactly what the in-process modem shows. A fiction, like the link.
+        self._ideal_link = ideal_link
         self._port = port
         self._on_air_key = on_air.on_air_key() if on_air is not None else None
         self.settings = RadioSettings()
@@ -316,8 +323,9 @@ class Rn2483:
                 self._finish()
                 return [TX_OK if event.ok else RADIO_ERR]
             return []
-        if self.state == RX:
-            self._finish()
+        if self.state == RX or (self._ideal_link and self.on_air):
+            if self.state == RX:
+                self._finish()
             self.last_snr_db = max(-128, min(127, round(event.snr_db)))
             self.last_rssi_dbm = round(event.rssi_dbm)
             return [RX_PREFIX + event.payload.hex().upper()]

@@ -96,7 +96,8 @@ class ModemBank:
         self._channel = channel
         self._on_air = on_air_settings(profile, sync_word)
         self.node_ids = tuple(node_ids)
-        self.modems = [Rn2483(n, _ChannelPort(channel, n), self._on_air) for n in self.node_ids]
+        self.modems = [Rn2483(n, _ChannelPort(channel, n), self._on_air, ideal_link=profile.ideal)
+                       for n in self.node_ids]
         self._ptys: list[_Pty] = []
         try:
             for _ in self.node_ids:
@@ -255,8 +256,10 @@ class ModemBank:
             line = raw.decode("ascii", errors="replace")
             self._emit(i, self.modems[i].command(line, now_us))
             self.commands_served += 1
-            # Arming can hand over a frame at once (an injected duplicate that waited for
-            # the receiver): give it to the module now, while it is in the state that asked.
+            # A command can finish something at once: arming hands over an injected duplicate
+            # that waited for the receiver, and a zero-length frame of the ideal profile ends
+            # when it starts. Resolve it now, as the in-process modem's next call would.
+            self._channel.advance_to(self._now_us)
             self._dispatch_channel_events()
         if len(p.inbuf) > _MAX_PENDING_INPUT:
             # The module's line buffer overflows on an endless line: it answers invalid_param.

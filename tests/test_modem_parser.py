@@ -271,3 +271,19 @@ def test_any_payload_round_trips_through_radio_rx(payload):
     rx.command("radio rx 0", 0)
     [line] = rx.deliver(RadioRxFrame(stamp_us=1, payload=payload, rssi_dbm=-80, snr_db=3), 1)
     assert line.startswith("radio_rx  ") and bytes.fromhex(line[10:]) == payload
+
+
+def test_ideal_link_prints_frames_whatever_the_modem_is_doing():
+    ideal = PROFILES["ideal-100Bps"]
+    port = FakePort(ideal)
+    m = Rn2483(0, port, on_air_settings(ideal), ideal_link=True)
+    for cmd in ("radio set freq 869525000", "radio set sf sf7", "radio set sync 12", "radio set wdt 0"):
+        m.command(cmd, 0)
+    assert m.on_air
+    frame = RadioRxFrame(stamp_us=5, payload=b"\x01", rssi_dbm=-40.0, snr_db=20.0)
+    assert m.deliver(frame, 5) == ["radio_rx  01"] and m.state == "idle"
+    m.command("radio tx 00", 6)
+    assert m.deliver(frame, 7) == ["radio_rx  01"] and m.state == "tx"
+    # A real link keeps the module's rule: outside `radio rx` nothing is printed.
+    real, _ = configured()
+    assert real.deliver(frame, 5) == []
