@@ -32,6 +32,7 @@ FRAME_VERSION = 1
 # odd-bit error in any frame is caught (HD 4, the best a 16-bit CRC reaches at this length),
 # and it differs from the LoRa PHY's CRC-16/CCITT (0x1021), so the two checks are independent.
 CRC_NAME = "modbus"
+CRC_CATALOGUE_NAME = "CRC-16/MODBUS"
 CRC_CHECK = 0x4B37
 crc16 = crcmod.predefined.mkPredefinedCrcFun(CRC_NAME)
 assert crc16(b"123456789") == CRC_CHECK, "crcmod catalogue entry does not match its check value"
@@ -224,7 +225,7 @@ def record_type(name_or_type: str | RecordType) -> RecordType:
 
 def markdown_table(types: tuple[RecordType, ...] = RECORD_TYPES) -> str:
     """Every record type as Markdown: for the README and `lorascout inspect --schema`."""
-    lines = [f"Frame version {FRAME_VERSION}, CRC {CRC_NAME.upper()} with schema fingerprint "
+    lines = [f"Frame version {FRAME_VERSION}, {CRC_CATALOGUE_NAME} with schema fingerprint "
              f"0x{SCHEMA_FINGERPRINT:04X} folded in.", ""]
     for r in types:
         lines.append(f"### `{r.name}` (type {r.code}, {r.size_bytes} bytes: "

@@ -1,0 +1,1 @@
+"""Wireshark dissector for lorascout frames, generated from the record table."""
