@@ -23,12 +23,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from radio_sim.channel import Channel
+    from radio_sim.rn2483 import on_air_settings
     from radio_sim.virtual_modem import ModemBank
 
     if not 1 <= args.count <= 64:
         print(f"lorascout modem: --count must be 1..64, got {args.count}", file=sys.stderr)
         return 2
     prof = radio_profile(args.radio)
+    try:
+        on_air_settings(prof)
+    except ValueError as e:
+        print(f"lorascout modem: --radio {args.radio}: {e}", file=sys.stderr)
+        return 2
     channel = Channel(prof, args.seed)
     for node_id in range(args.count):
         channel.attach(node_id, lambda x_m=node_id * _SPACING_M: (x_m, 0.0))

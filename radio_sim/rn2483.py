@@ -107,6 +107,9 @@ def on_air_settings(profile: RadioProfile, sync_word: int = PRIVATE_SYNC_WORD) -
     m = profile.modulation
     if m.implicit_header or m.low_data_rate_optimize is not None or not 7 <= m.sf <= 12:
         raise ValueError(f"profile {profile.name!r}: modulation {m} cannot be set on an RN2483")
+    if not (433_050_000 <= profile.freq_hz <= 434_790_000 or 863_000_000 <= profile.freq_hz <= 870_000_000):
+        raise ValueError(f"profile {profile.name!r}: {profile.freq_hz} Hz is outside the RN2483's bands "
+                         f"(433.05-434.79 MHz, 863-870 MHz)")
     return RadioSettings(mod="lora", freq_hz=profile.freq_hz, pwr_dbm=min(15, int(profile.tx_power_dbm)),
                          sf=m.sf, bw_khz=m.bw_hz // 1000, cr=m.cr, crc_on=m.crc_on,
                          sync_word=sync_word, preamble_symbols=m.preamble_symbols, wdt_ms=0)

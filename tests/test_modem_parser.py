@@ -287,3 +287,10 @@ def test_ideal_link_prints_frames_whatever_the_modem_is_doing():
     # A real link keeps the module's rule: outside `radio rx` nothing is printed.
     real, _ = configured()
     assert real.deliver(frame, 5) == []
+
+
+def test_profiles_outside_the_modules_bands_are_refused():
+    with pytest.raises(ValueError, match="us915.*915000000 Hz is outside the RN2483's bands"):
+        on_air_settings(PROFILES["us915"])
+    for name in ("eu868-g1", "eu868-g3", "eu868-g3-bw250", "ideal-100Bps"):
+        assert on_air_settings(PROFILES[name]).freq_hz == PROFILES[name].freq_hz

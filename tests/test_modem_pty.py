@@ -181,3 +181,10 @@ def test_round_trip_time_of_the_wall_clock_server():
         assert server.stop() == 0
     print(f"wall-clock server round trip: {rtt_us:.0f} us")
     assert rtt_us < 20_000
+
+
+def test_modem_command_refuses_a_profile_the_module_cannot_tune():
+    proc = subprocess.run([sys.executable, "-m", "host_tools.cli", "modem", "--radio", "us915"],
+                          cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert "--radio us915" in proc.stderr and "outside the RN2483's bands" in proc.stderr
