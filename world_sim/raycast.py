@@ -142,18 +142,17 @@ def mark_observed(observed, wall_u8, origin_x_m, origin_y_m, resolution_m, x_m, 
 
 @njit(cache=True)
 def cast_and_mark(observed, wall_u8, origin_x_m, origin_y_m, resolution_m, x_m, y_m, angles_rad, max_range_m):
-    """`cast_rays` and then `mark_observed` with the ranges it found, in one pass per beam."""
+    """`cast_rays` and then `mark_observed` with the ranges it found, in one pass per beam:
+    the marking walk stops at the first wall anyway, so it only needs the range limit."""
     gx = (x_m - origin_x_m) / resolution_m
     gy = (y_m - origin_y_m) / resolution_m
     stop_g = max_range_m / resolution_m
     n = angles_rad.shape[0]
     out = np.empty(n, dtype=np.float64)
     for k in range(n):
-        dx = math.cos(angles_rad[k])
-        dy = math.sin(angles_rad[k])
-        hit = _traverse(wall_u8, gx, gy, dx, dy, stop_g, observed, False)
+        hit = _traverse(wall_u8, gx, gy, math.cos(angles_rad[k]), math.sin(angles_rad[k]),
+                        stop_g + TIE_EPS_CELLS, observed, True)
         out[k] = hit * resolution_m if hit <= stop_g else max_range_m
-        _traverse(wall_u8, gx, gy, dx, dy, out[k] / resolution_m + TIE_EPS_CELLS, observed, True)
     return out
 
 

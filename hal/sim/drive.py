@@ -1,0 +1,29 @@
+"""Simulated differential-drive base: the world moves the body with the last command."""
+from __future__ import annotations
+
+import math
+
+from hal.samples import DriveLimits
+from world_sim.world import World
+
+
+class SimDriveBase:
+    def __init__(self, world: World, robot_index: int) -> None:
+        world.command(robot_index)
+        self._world = world
+        self._index = robot_index
+        p = world.params
+        self._limits = DriveLimits(max_v_mps=p.max_v_mps, max_omega_radps=p.max_omega_radps,
+                                   robot_radius_m=p.robot_radius_m)
+
+    def limits(self) -> DriveLimits:
+        return self._limits
+
+    def command(self, v_mps: float, omega_radps: float) -> None:
+        for name, value in (("v_mps", v_mps), ("omega_radps", omega_radps)):
+            if not math.isfinite(value):
+                raise ValueError(f"SimDriveBase.command (robot {self._index}): {name} must be finite, got {value!r}")
+        lim = self._limits
+        v = min(max(float(v_mps), -lim.max_v_mps), lim.max_v_mps)
+        w = min(max(float(omega_radps), -lim.max_omega_radps), lim.max_omega_radps)
+        self._world.set_command(self._index, v, w)

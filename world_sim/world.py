@@ -1,0 +1,368 @@
+"""The simulated physical world: robot bodies on a ground-truth map and what their sensors
+measure. The simulated HAL backends (`hal.sim`) are thin views onto one `World`.
+
+Time is integer microseconds and moves only in `World.step`. Sensors fire on fixed period
+grids (a LiDAR at 10 Hz scans at 0, 100 000, 200 000 us, ...); a step is split at every due
+measurement so each one sees the true poses of all robots at its own time stamp.
+
+Randomness: robot i's LiDAR noise comes only from `stream(seed, "lidar", i)`, its
+odometry drift from "odometry", its UWB ranges from "uwb", its AoA bearings from "aoa".
+Robot ids on the HAL (UwbRange.peer_id, AoaBearing.peer_id) are the robot indices.
+
+Coverage is ground truth: each scan marks the cells its beams crossed, computed from the
+TRUE pose and the noise-free ranges. Robots do not collide with or occlude each other.
+"""
+from __future__ import annotations
+
+import math
+import operator
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from hal.samples import AoaBearing, LidarScan, OdometrySample, UwbRange
+from world_sim.kinematics import BodyState, ClearanceMap, advance, wrap_angle
+from world_sim.occupancy_map import OccupancyMap
+from world_sim.raycast import cast_and_mark, wall_length_m
+from world_sim.seeding import stream
+
+# Measurements a robot has not collected are dropped oldest first beyond this many.
+MAX_PENDING_MEASUREMENTS = 1024
+
+
+@dataclass(frozen=True)
+class WorldParams:
+    robot_radius_m: float = 0.25
+    max_v_mps: float = 0.8
+    max_omega_radps: float = 1.5
+    lidar_beams: int = 360
+    lidar_range_m: float = 10.0
+    lidar_noise_std_m: float = 0.01      # Gaussian, on beams that hit something
+    lidar_rate_hz: float = 10.0
+    # Odometry drift is a random walk whose variance grows linearly with the motion:
+    # position error std = odom_trans_noise_per_m * sqrt(metres travelled) per axis,
+    # yaw error std = sqrt(odom_yaw_noise_per_rad^2 * |rad turned| + odom_yaw_drift_per_m^2 * metres).
+    # The yaw error then bends the integrated track, so position drift grows faster than that.
+    odom_trans_noise_per_m: float = 0.002
+    odom_yaw_noise_per_rad: float = 0.001
+    odom_yaw_drift_per_m: float = 0.0002
+    odom_speed_noise_frac: float = 0.01  # relative std of the reported v and omega (encoder scale)
+    uwb_noise_std_m: float = 0.05
+    # NLOS: when the straight path between two robots crosses any wall, the first path
+    # arrives late: a fixed uwb_nlos_bias_m plus uwb_nlos_bias_per_wall_m per metre of wall
+    # crossed (excess delay of a dielectric with relative permittivity ~5: sqrt(5) - 1 = 1.24).
+    uwb_nlos_bias_m: float = 0.3
+    uwb_nlos_bias_per_wall_m: float = 1.2
+    uwb_range_max_m: float = 50.0
+    uwb_rate_hz: float = 2.0
+    aoa_noise_std_rad: float = 0.05
+    aoa_outlier_prob: float = 0.05       # multipath: the bearing is uniformly random
+    aoa_range_max_m: float = 50.0
+    aoa_rate_hz: float = 2.0
+    collision_spacing_m: float = 0.01    # arc sampling for the swept-disc collision check
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+                raise ValueError(f"WorldParams.{f.name} must be a finite number, got {value!r}")
+            if value < 0:
+                raise ValueError(f"WorldParams.{f.name} must be >= 0, got {value!r}")
+        for name in ("robot_radius_m", "lidar_range_m", "lidar_rate_hz", "uwb_rate_hz", "aoa_rate_hz",
+                     "collision_spacing_m"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"WorldParams.{name} must be > 0, got {getattr(self, name)!r}")
+        if not isinstance(self.lidar_beams, int) or self.lidar_beams < 1:
+            raise ValueError(f"WorldParams.lidar_beams must be a positive integer, got {self.lidar_beams!r}")
+        if self.aoa_outlier_prob > 1:
+            raise ValueError(f"WorldParams.aoa_outlier_prob must be in [0, 1], got {self.aoa_outlier_prob!r}")
+        for name in ("lidar_rate_hz", "uwb_rate_hz", "aoa_rate_hz"):
+            if round(1e6 / getattr(self, name)) < 1:
+                raise ValueError(f"WorldParams.{name} = {getattr(self, name)!r} is faster than 1 MHz")
+
+    @property
+    def lidar_period_us(self) -> int:
+        return round(1e6 / self.lidar_rate_hz)
+
+    @property
+    def uwb_period_us(self) -> int:
+        return round(1e6 / self.uwb_rate_hz)
+
+    @property
+    def aoa_period_us(self) -> int:
+        return round(1e6 / self.aoa_rate_hz)
+
+    @property
+    def lidar_angle_min_rad(self) -> float:
+        return -math.pi
+
+    @property
+    def lidar_angle_increment_rad(self) -> float:
+        return 2.0 * math.pi / self.lidar_beams
+
+
+class World:
+    def __init__(
+        self,
+        occ: OccupancyMap,
+        start_poses: list[tuple[float, float, float]],
+        seed: int,
+        params: WorldParams = WorldParams(),
+    ) -> None:
+        self.occ = occ
+        self.params = params
+        self.seed = int(seed)
+        self.clearance = ClearanceMap.from_map(occ)
+        self._wall = self.clearance.wall_u8
+        n = len(start_poses)
+        if n == 0:
+            raise ValueError("World needs at least one start pose")
+        poses = np.empty((n, 3), dtype=np.float64)
+        for i, pose in enumerate(start_poses):
+            try:
+                x, y, yaw = (float(v) for v in pose)
+            except (TypeError, ValueError):
+                raise ValueError(f"start pose of robot {i} must be (x_m, y_m, yaw_rad), got {pose!r}") from None
+            if not all(math.isfinite(v) for v in (x, y, yaw)):
+                raise ValueError(f"start pose of robot {i} has a non-finite value: {pose!r}")
+            clearance_m = self.clearance.clearance_m(x, y, params.robot_radius_m + 1.0)
+            if not clearance_m > params.robot_radius_m:
+                raise ValueError(
+                    f"start pose of robot {i} at (x={x:.3f} m, y={y:.3f} m, yaw={yaw:.3f} rad) on map "
+                    f"{occ.name!r}: the robot disc (radius {params.robot_radius_m} m) touches a wall cell "
+                    f"or the map edge (clearance {clearance_m:.3f} m)"
+                )
+            poses[i] = (x, y, wrap_angle(yaw))
+        self.n_robots = n
+        self.now_us = 0
+        self._pose = poses
+        self._cmd = np.zeros((n, 2), dtype=np.float64)
+        self._path_m = np.zeros(n, dtype=np.float64)
+        self._blocked = np.zeros(n, dtype=np.int64)
+        self._observed = np.zeros((n, occ.rows, occ.cols), dtype=bool)
+        self._odom = poses.copy()
+        self._odom_vel = np.zeros((n, 2), dtype=np.float64)
+        self._odom_stamp_us = 0
+        self._scans: list[LidarScan | None] = [None] * n
+        self._uwb: list[list[UwbRange]] = [[] for _ in range(n)]
+        self._aoa: list[list[AoaBearing]] = [[] for _ in range(n)]
+        self._rng_lidar = [stream(seed, "lidar", i) for i in range(n)]
+        self._rng_odom = [stream(seed, "odometry", i) for i in range(n)]
+        self._rng_uwb = [stream(seed, "uwb", i) for i in range(n)]
+        self._rng_aoa = [stream(seed, "aoa", i) for i in range(n)]
+        p = params
+        self._beam_angles = p.lidar_angle_min_rad + np.arange(p.lidar_beams) * p.lidar_angle_increment_rad
+        self._periods = (p.lidar_period_us, p.uwb_period_us, p.aoa_period_us)
+        self._fire_lidar()
+        self._fire_uwb()
+        self._fire_aoa()
+        self._next_us = list(self._periods)
+
+    # --- control ------------------------------------------------------------------------
+
+    def _check_index(self, i: int) -> int:
+        i = operator.index(i)
+        if not 0 <= i < self.n_robots:
+            raise IndexError(f"robot index {i} out of range (world has {self.n_robots} robots)")
+        return i
+
+    def set_command(self, i: int, v_mps: float, omega_radps: float) -> None:
+        """Robot i drives with this body velocity (clipped to the limits) until the next command."""
+        i = self._check_index(i)
+        for name, value in (("v_mps", v_mps), ("omega_radps", omega_radps)):
+            if not math.isfinite(value):
+                raise ValueError(f"drive command for robot {i}: {name} must be finite, got {value!r}")
+        p = self.params
+        self._cmd[i, 0] = min(max(float(v_mps), -p.max_v_mps), p.max_v_mps)
+        self._cmd[i, 1] = min(max(float(omega_radps), -p.max_omega_radps), p.max_omega_radps)
+
+    def command(self, i: int) -> tuple[float, float]:
+        i = self._check_index(i)
+        return float(self._cmd[i, 0]), float(self._cmd[i, 1])
+
+    def step(self, dt_us: int) -> None:
+        """Advance the world by dt_us microseconds, taking every measurement that falls due."""
+        dt_us = operator.index(dt_us)
+        if dt_us <= 0:
+            raise ValueError(f"dt_us must be a positive integer, got {dt_us}")
+        t_end = self.now_us + dt_us
+        n = self.n_robots
+        travelled_signed = np.zeros(n)
+        turned = np.zeros(n)
+        blocked = np.zeros(n, dtype=bool)
+        t = self.now_us
+        while True:
+            t_next = min(self._next_us[0], self._next_us[1], self._next_us[2], t_end)
+            if t_next > t:
+                self._move_all((t_next - t) * 1e-6, travelled_signed, turned, blocked)
+                t = t_next
+            self.now_us = t
+            if self._next_us[0] == t:
+                self._fire_lidar()
+                self._next_us[0] += self._periods[0]
+            if self._next_us[1] == t:
+                self._fire_uwb()
+                self._next_us[1] += self._periods[1]
+            if self._next_us[2] == t:
+                self._fire_aoa()
+                self._next_us[2] += self._periods[2]
+            if t == t_end:
+                break
+        self._blocked += blocked
+        dt_s = dt_us * 1e-6
+        frac = self.params.odom_speed_noise_frac
+        for i in range(n):
+            v = travelled_signed[i] / dt_s
+            w = turned[i] / dt_s
+            if v != 0.0 or w != 0.0:
+                z = self._rng_odom[i].standard_normal(2)
+                v *= 1.0 + frac * z[0]
+                w *= 1.0 + frac * z[1]
+            self._odom_vel[i] = (v, w)
+        self._odom_stamp_us = t_end
+
+    def _move_all(self, dt_s: float, travelled_signed: np.ndarray, turned: np.ndarray, blocked_any: np.ndarray) -> None:
+        p = self.params
+        c = self.clearance
+        for i in range(self.n_robots):
+            x0, y0, th0 = self._pose[i]
+            v, w = self._cmd[i]
+            x1, y1, th1, ds, blocked = advance(
+                c.wall_u8, c.cell_clearance_lb_m, c.origin_x_m, c.origin_y_m, c.resolution_m,
+                p.robot_radius_m, p.collision_spacing_m, x0, y0, th0, v, w, dt_s,
+            )
+            self._pose[i] = (x1, y1, th1)
+            self._path_m[i] += ds
+            blocked_any[i] |= blocked
+            dth = w * dt_s
+            travelled_signed[i] += math.copysign(ds, v)
+            turned[i] += dth
+            if ds == 0.0 and dth == 0.0:
+                continue
+            # Dead reckoning: the true body-frame displacement, integrated on the drifting
+            # estimate, plus a random walk driven by how far and how much the robot moved.
+            ca, sa = math.cos(th0), math.sin(th0)
+            bx = ca * (x1 - x0) + sa * (y1 - y0)
+            by = -sa * (x1 - x0) + ca * (y1 - y0)
+            z = self._rng_odom[i].standard_normal(3)
+            pos_std = p.odom_trans_noise_per_m * math.sqrt(ds)
+            yaw_std = math.sqrt(p.odom_yaw_noise_per_rad ** 2 * abs(dth) + p.odom_yaw_drift_per_m ** 2 * ds)
+            ex, ey, eth = self._odom[i]
+            ce, se = math.cos(eth), math.sin(eth)
+            self._odom[i] = (
+                ex + ce * bx - se * by + pos_std * z[0],
+                ey + se * bx + ce * by + pos_std * z[1],
+                wrap_angle(eth + dth + yaw_std * z[2]),
+            )
+
+    # --- sensors -------------------------------------------------------------------------
+
+    def _fire_lidar(self) -> None:
+        p = self.params
+        occ = self.occ
+        for i in range(self.n_robots):
+            x, y, yaw = self._pose[i]
+            true_ranges = cast_and_mark(
+                self._observed[i], self._wall, occ.origin_x_m, occ.origin_y_m, occ.resolution_m,
+                x, y, self._beam_angles + yaw, p.lidar_range_m,
+            )
+            noise = self._rng_lidar[i].standard_normal(p.lidar_beams) * p.lidar_noise_std_m
+            hit = true_ranges < p.lidar_range_m
+            measured = np.where(hit, np.clip(true_ranges + noise, 0.0, p.lidar_range_m), p.lidar_range_m)
+            self._scans[i] = LidarScan(
+                stamp_us=self.now_us,
+                angle_min_rad=p.lidar_angle_min_rad,
+                angle_increment_rad=p.lidar_angle_increment_rad,
+                range_max_m=p.lidar_range_m,
+                ranges_m=measured.astype(np.float32),
+            )
+
+    def _fire_uwb(self) -> None:
+        p = self.params
+        occ = self.occ
+        for i in range(self.n_robots):
+            xi, yi, _ = self._pose[i]
+            rng = self._rng_uwb[i]
+            out = self._uwb[i]
+            for j in range(self.n_robots):
+                if j == i:
+                    continue
+                xj, yj, _ = self._pose[j]
+                d = math.hypot(xj - xi, yj - yi)
+                if d > p.uwb_range_max_m:
+                    continue
+                through_wall_m = wall_length_m(self._wall, occ.origin_x_m, occ.origin_y_m, occ.resolution_m,
+                                               xi, yi, xj, yj)
+                bias = p.uwb_nlos_bias_m + p.uwb_nlos_bias_per_wall_m * through_wall_m if through_wall_m > 0 else 0.0
+                r = max(d + bias + p.uwb_noise_std_m * rng.standard_normal(), 0.0)
+                out.append(UwbRange(stamp_us=self.now_us, peer_id=j, range_m=r))
+            del out[:-MAX_PENDING_MEASUREMENTS]
+
+    def _fire_aoa(self) -> None:
+        p = self.params
+        for i in range(self.n_robots):
+            xi, yi, yaw_i = self._pose[i]
+            rng = self._rng_aoa[i]
+            out = self._aoa[i]
+            for j in range(self.n_robots):
+                if j == i:
+                    continue
+                xj, yj, _ = self._pose[j]
+                if math.hypot(xj - xi, yj - yi) > p.aoa_range_max_m:
+                    continue
+                # Always three draws per bearing, so an outlier never shifts later numbers.
+                u, z, w = rng.random(), rng.standard_normal(), rng.random()
+                if u < p.aoa_outlier_prob:
+                    bearing = wrap_angle(-math.pi + 2.0 * math.pi * w)
+                else:
+                    bearing = wrap_angle(math.atan2(yj - yi, xj - xi) - yaw_i + p.aoa_noise_std_rad * z)
+                out.append(AoaBearing(stamp_us=self.now_us, peer_id=j, bearing_rad=bearing))
+            del out[:-MAX_PENDING_MEASUREMENTS]
+
+    # --- what the HAL backends read --------------------------------------------------------
+
+    def latest_scan(self, i: int) -> LidarScan | None:
+        """Robot i's newest scan (robot frame, noisy); the same object until the next is due."""
+        return self._scans[self._check_index(i)]
+
+    def odometry_sample(self, i: int) -> OdometrySample:
+        i = self._check_index(i)
+        x, y, yaw = self._odom[i]
+        v, w = self._odom_vel[i]
+        return OdometrySample(stamp_us=self._odom_stamp_us, x_m=float(x), y_m=float(y), yaw_rad=float(yaw),
+                              v_mps=float(v), omega_radps=float(w))
+
+    def take_uwb_ranges(self, i: int) -> tuple[UwbRange, ...]:
+        """Robot i's UWB ranges since the last call, oldest first."""
+        q = self._uwb[self._check_index(i)]
+        out = tuple(q)
+        q.clear()
+        return out
+
+    def take_aoa_bearings(self, i: int) -> tuple[AoaBearing, ...]:
+        q = self._aoa[self._check_index(i)]
+        out = tuple(q)
+        q.clear()
+        return out
+
+    # --- ground truth for metrics -----------------------------------------------------------
+
+    def true_pose(self, i: int) -> BodyState:
+        x, y, yaw = self._pose[self._check_index(i)]
+        return BodyState(float(x), float(y), float(yaw))
+
+    def path_length_m(self, i: int) -> float:
+        return float(self._path_m[self._check_index(i)])
+
+    def blocked_moves(self, i: int) -> int:
+        """Steps in which a wall cut robot i's commanded translation short."""
+        return int(self._blocked[self._check_index(i)])
+
+    def observed(self, i: int) -> np.ndarray:
+        """Read-only view of the cells robot i's LiDAR has covered (bool, map shape)."""
+        view = self._observed[self._check_index(i)].view()
+        view.flags.writeable = False
+        return view
+
+    def observed_union(self) -> np.ndarray:
+        return np.any(self._observed, axis=0)
