@@ -208,3 +208,31 @@ def test_bad_commands_are_rejected():
         step(BodyState(0.5, 0.5, 0.0), math.nan, 0.0, 0.1, clr, RADIUS_M)
     with pytest.raises(ValueError, match="dt_s"):
         step(BodyState(0.5, 0.5, 0.0), 0.1, 0.0, -0.1, clr, RADIUS_M)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10_000), st.lists(
+    st.tuples(st.integers(0, 2), st.floats(-1.0, 1.0), st.floats(-2.0, 2.0), st.integers(1, 400_000)),
+    min_size=1, max_size=40,
+))
+def test_world_robots_never_enter_walls(pick, commands):
+    from world_sim.world import World, WorldParams
+
+    occ, clr = maze_map()
+    cells = np.argwhere(occ.free)
+    starts = []
+    for k in range(len(cells)):
+        r, c = cells[(pick * 7919 + k * 104729) % len(cells)]
+        x, y = occ.center_of(int(r), int(c))
+        if clr.disc_fits(x, y, RADIUS_M):
+            starts.append((x, y, 0.1 * k))
+            if len(starts) == 3:
+                break
+    world = World(occ, starts, seed=pick, params=WorldParams(lidar_beams=16, lidar_rate_hz=1.0))
+    truth = WallBoxes(occ)
+    for i, v, omega, dt_us in commands:
+        world.set_command(i, v, omega)  # beyond the limits: clipped, never rejected
+        world.step(dt_us)
+        poses = [world.true_pose(j) for j in range(3)]
+        c = truth.clearance(np.array([p.x_m for p in poses]), np.array([p.y_m for p in poses]))
+        assert np.all(c > RADIUS_M)
