@@ -82,8 +82,15 @@ def load_ros_map(yaml_path: str | os.PathLike) -> OccupancyMap:
     )
 
 
-def reachable_free(occ: OccupancyMap, start_xy: tuple[float, float]) -> np.ndarray:
-    """Bool grid of the 8-connected free component that contains the start point."""
+def reachable_free(
+    occ: OccupancyMap, start_xy: tuple[float, float], connectivity: int = 8
+) -> np.ndarray:
+    """Bool grid of the free component (8- or 4-connected) that contains the start point.
+
+    8-connected lets a component leak through pixel-diagonal chinks in drawn walls; the
+    areas in the shared maps' README are the 4-connected ones."""
+    if connectivity not in (4, 8):
+        raise ValueError(f"connectivity must be 4 or 8, got {connectivity!r}")
     row, col = occ.cell_of(float(start_xy[0]), float(start_xy[1]))
     if not (0 <= row < occ.rows and 0 <= col < occ.cols):
         raise ValueError(
@@ -96,13 +103,16 @@ def reachable_free(occ: OccupancyMap, start_xy: tuple[float, float]) -> np.ndarr
             f"start ({start_xy[0]:.3f}, {start_xy[1]:.3f}) m is in a wall cell "
             f"(row {row}, col {col}) of map '{occ.name}'"
         )
-    labels, _ = ndimage.label(occ.free, structure=_EIGHT_CONNECTED)
+    labels, _ = ndimage.label(occ.free, structure=_EIGHT_CONNECTED if connectivity == 8 else None)
     return labels == labels[row, col]
 
 
-def reachable_area_m2(occ: OccupancyMap, start_xy: tuple[float, float]) -> float:
+def reachable_area_m2(
+    occ: OccupancyMap, start_xy: tuple[float, float], connectivity: int = 8
+) -> float:
     """Area of the free component containing the start, in square metres."""
-    return float(np.count_nonzero(reachable_free(occ, start_xy))) * occ.resolution_m ** 2
+    cells = np.count_nonzero(reachable_free(occ, start_xy, connectivity))
+    return float(cells) * occ.resolution_m ** 2
 
 
 # ----------------------------------------------------------------------------- YAML fields
@@ -116,6 +126,9 @@ def _parse_yaml_fields(text: str, where: str) -> dict[str, tuple[object, int]]:
         mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
         line = f":{mark.line + 1}" if mark is not None else ""
         problem = getattr(exc, "problem", None) or str(exc)
+        context, context_mark = getattr(exc, "context", None), getattr(exc, "context_mark", None)
+        if context and context_mark is not None and context_mark is not mark:
+            problem += f" ({context} started at line {context_mark.line + 1})"
         raise MapFormatError(f"{where}{line}: malformed YAML: {problem}") from None
     if root is None:
         raise MapFormatError(f"{where}: empty map YAML; needs fields {', '.join(_REQUIRED)}")
