@@ -123,3 +123,28 @@ def test_no_diagonal_leak_between_touching_walls():
     obs = np.zeros(wall.shape, dtype=bool)
     mark_observed(obs, wall, 0.0, 0.0, 1.0, 1.5, 1.5, np.array([math.pi / 4]), r)
     assert obs[1, 1] and obs[1, 2] and obs[2, 1] and not obs[2, 2]
+
+
+def test_real_map_crop_matches_reference():
+    from pathlib import Path
+
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(Path("/work/shared/maps/intel.png")).convert("L"))
+    free = np.flipud((255.0 - pixels) / 255.0 < 0.1)[400:440, 300:340]  # a 2 x 2 m corner of the lab
+    wall = (~free).astype(np.uint8)
+    rng = np.random.default_rng(5)
+    free_cells = np.argwhere(free)
+    assert len(free_cells) > 100 and wall.sum() > 50
+    for r, c in free_cells[rng.choice(len(free_cells), 8, replace=False)]:
+        x = 15.0 + (c + rng.uniform(0.02, 0.98)) * 0.05
+        y = 20.0 + (r + rng.uniform(0.02, 0.98)) * 0.05
+        angles = rng.uniform(-math.pi, math.pi, 24)
+        got = cast_rays(wall, 15.0, 20.0, 0.05, x, y, angles, 1.5)
+        want = cast_rays_reference(wall, 15.0, 20.0, 0.05, x, y, angles, 1.5)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+        obs_got = np.zeros(wall.shape, dtype=bool)
+        obs_want = np.zeros(wall.shape, dtype=bool)
+        mark_observed(obs_got, wall, 15.0, 20.0, 0.05, x, y, angles, got)
+        mark_observed_reference(obs_want, wall, 15.0, 20.0, 0.05, x, y, angles, got)
+        assert np.array_equal(obs_got, obs_want)

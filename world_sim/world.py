@@ -269,12 +269,14 @@ class World:
             noise = self._rng_lidar[i].standard_normal(p.lidar_beams) * p.lidar_noise_std_m
             hit = true_ranges < p.lidar_range_m
             measured = np.where(hit, np.clip(true_ranges + noise, 0.0, p.lidar_range_m), p.lidar_range_m)
+            measured = measured.astype(np.float32)
+            measured.flags.writeable = False  # every reader gets the same sample object
             self._scans[i] = LidarScan(
                 stamp_us=self.now_us,
                 angle_min_rad=p.lidar_angle_min_rad,
                 angle_increment_rad=p.lidar_angle_increment_rad,
                 range_max_m=p.lidar_range_m,
-                ranges_m=measured.astype(np.float32),
+                ranges_m=measured,
             )
 
     def _fire_uwb(self) -> None:
@@ -350,6 +352,10 @@ class World:
     def true_pose(self, i: int) -> BodyState:
         x, y, yaw = self._pose[self._check_index(i)]
         return BodyState(float(x), float(y), float(yaw))
+
+    def true_poses(self) -> np.ndarray:
+        """All true poses, shape (n_robots, 3): x_m, y_m, yaw_rad (a copy)."""
+        return self._pose.copy()
 
     def path_length_m(self, i: int) -> float:
         return float(self._path_m[self._check_index(i)])
