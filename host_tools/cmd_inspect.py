@@ -388,6 +388,9 @@ def _report(frames: list[AirFrame], profile: RadioProfile | None, args: argparse
 def main(args: argparse.Namespace) -> int:
     try:
         return _main(args)
+    except BrokenPipeError:        # `lorascout inspect x | head` is fine
+        sys.stderr.close()
+        return 0
     except (InspectError, OSError, ValueError) as e:
         print(f"lorascout inspect: error: {e}", file=sys.stderr)
         return 1

@@ -101,6 +101,10 @@ def air_frame_packets(frames: Iterable[AirFrame], mode: str = "per-frame") -> It
     """(timestamp us, LoRaTap header + payload) for each packet `mode` makes of the frames."""
     if mode not in MODES:
         raise ValueError(f"pcap mode {mode!r}; choose one of {', '.join(MODES)}")
+    return _packets(frames, mode)
+
+
+def _packets(frames: Iterable[AirFrame], mode: str) -> Iterable[tuple[int, bytes]]:
     for a in frames:
         if mode == "per-frame":
             best = max(a.receptions, key=lambda r: (r.rssi_dbm, -r.receiver_id), default=None)
