@@ -187,6 +187,7 @@ class _TunnelNetwork:
     BUCKET_M = 16.0
     TARGET_SHARE = 0.26  # stop when tunnels cover this share of the box
     MIN_JUNCTION_DEG = 40.0
+    BRANCH_TRIES = 4  # failed cross-cuts before a drift counts as boxed in
     LOOP_P = 0.45  # when a drift runs into another tunnel: join it (loop) or stop short
 
     def __init__(self, rng: np.random.Generator, width_m: float, height_m: float):
@@ -207,23 +208,27 @@ class _TunnelNetwork:
         for k in range(n_first):
             heading = base + 2.0 * math.pi * k / n_first + rng.normal(0.0, 0.15)
             tips.append((start_xy[0], start_xy[1], heading, rng.uniform(1.5, 2.0)))
-        failures = 0
-        # Late in the growth most tries fail (the rock is full of pillars); cap the total.
-        budget = 8 * int(self.target_m2 / 50.0) + 400
-        while self.area_m2 < self.target_m2 and failures < 400 and budget > 0:
+        # Tries that fail count against the drift they branch from; a drift that keeps failing
+        # is boxed in and is no longer tried, so the effort goes where there is still rock.
+        branch_fails: list[int] = []
+        budget = 20 * int(self.target_m2 / 50.0) + 400  # a hard stop, rarely reached
+        while self.area_m2 < self.target_m2 and budget > 0:
             budget -= 1
-            if not tips:
-                tip = self._branch_from_existing()
-                if tip is None:
-                    failures += 1
-                    continue
-                tips.append(tip)
-            x, y, heading, half_w = tips.pop(int(rng.integers(len(tips))))
+            source = -1
+            if tips:
+                x, y, heading, half_w = tips.pop(int(rng.integers(len(tips))))
+            else:
+                branch_fails.extend([0] * (len(self.segments) - len(branch_fails)))
+                open_ids = np.flatnonzero(np.asarray(branch_fails) < self.BRANCH_TRIES)
+                if open_ids.size == 0:
+                    break
+                source = int(open_ids[int(rng.integers(open_ids.size))])
+                x, y, heading, half_w = self._branch_from(source)
             outcome, end = self._extend(x, y, heading, half_w)
             if outcome == "blocked":
-                failures += 1
+                if source >= 0:
+                    branch_fails[source] += 1
                 continue
-            failures = 0
             if outcome != "open":
                 continue  # joined another tunnel (a loop) or stopped short (a dead end)
             ex, ey = end
@@ -239,10 +244,9 @@ class _TunnelNetwork:
             if children >= 2 and rng.random() < 0.25:
                 self._add_chamber(ex, ey, rng.uniform(3.0, 5.0))
 
-    def _branch_from_existing(self):
-        """A cross-cut leaving an existing drift at a random point, to either side."""
+    def _branch_from(self, i: int):
+        """A cross-cut leaving drift i at a random point, to either side."""
         rng = self.rng
-        i = int(rng.integers(len(self.segments)))
         x0, y0, x1, y1, _ = self.segments[i]
         t = rng.uniform(0.2, 0.8)
         if (x0, y0) == (x1, y1):  # a chamber: leave it in any direction
@@ -292,7 +296,9 @@ class _TunnelNetwork:
         clear = seg[None, :, 4] + half_w + self.PILLAR_M
         bad = d < clear
         start_d = _point_segment_distance(x, y, seg[:, 0], seg[:, 1], seg[:, 2], seg[:, 3])
-        at_start = start_d < seg[:, 4] + 0.05
+        # Tunnels already within pillar distance of the junction (the one it leaves, and the
+        # drifts meeting there) may only be moved away from, never approached again.
+        at_start = start_d < seg[:, 4] + half_w + self.PILLAR_M
         # leaving a junction, keep a real angle to every tunnel already there (no thin slivers)
         hx, hy = px[0] - x, py[0] - y
         hn = math.hypot(hx, hy)
@@ -302,7 +308,6 @@ class _TunnelNetwork:
             cos = (vx * hx + vy * hy) / np.maximum(vn * hn, 1e-12)
             if np.any(at_start & (vn > 0.5) & (cos > math.cos(math.radians(self.MIN_JUNCTION_DEG)))):
                 return 0, None
-        # tunnels the drift starts from: only a conflict once the drift has got clear of them
         left = np.maximum.accumulate(~bad[:, at_start], axis=0)
         bad[:, at_start] &= left
         if at_start.any() and not left[-1].all():
