@@ -69,3 +69,14 @@ def test_decode_reports_out_of_range_and_padding():
     padded = bytearray(encode("topo", dict(sender_id=1, x_cm=0, y_cm=0, z_cm=0, presence=0, e_inf_code=0)))
     padded[-1] |= 1
     assert decode("topo", bytes(padded)).reason is Reason.OUT_OF_RANGE
+
+
+def test_saturate_clamps_and_rounds_into_range():
+    from firmware.comms.codec import saturate
+    v = saturate("pose", dict(sender_id=3, x_cm=12.6, y_cm=-1e12, yaw_cdeg=40000, speed_cmps=999.0,
+                              exploring=True, done=0, returning=float("nan"), vertex_count=5000))
+    assert v == dict(sender_id=3, x_cm=13, y_cm=-(1 << 23), yaw_cdeg=18000, speed_cmps=255, exploring=1,
+                     done=0, returning=0, vertex_count=4095)
+    assert decode("pose", encode("pose", v)).values == v
+    assert saturate("target", dict(sender_id=1, x_cm=float("inf"), y_cm=float("-inf"), path_cost_dm=7e9,
+                                   claimed=1, e_inf_code=-4))["path_cost_dm"] == 65535

@@ -100,3 +100,20 @@ def decode(rtype: str | RecordType, data: bytes) -> RecordDecode:
             return RecordDecode(None, Reason.OUT_OF_RANGE, f"{rt.name}.{name} = {v} outside [{lo}, {hi}]")
         out[name] = v
     return RecordDecode(out, Reason.OK)
+
+
+def saturate(rtype: str | RecordType, values: Mapping[str, Any]) -> dict[str, int]:
+    """Round each value to an integer and clamp it into its field's valid range: for fields
+    the table documents as saturating (speed_cmps, vertex_count, path_cost_dm) and for
+    callers converting from physical units. NaN becomes the range's lower bound, +-inf its ends."""
+    rt = record_type(rtype)
+    values = as_values(rt, values)
+    out = {}
+    for f in rt.fields:
+        v = values[f.name]
+        if v != v:                                   # NaN != NaN
+            v = f.min_value
+        elif v in (float("inf"), float("-inf")):
+            v = f.max_value if v > 0 else f.min_value
+        out[f.name] = min(f.max_value, max(f.min_value, round(v)))
+    return out
