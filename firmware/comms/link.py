@@ -13,6 +13,19 @@ Per `service(now_us, radio)` call:
    it only if (a) the sub-band airtime budget holds in the duty-cycle window ending when this
    frame would end (the worst window, see `_duty_cycle_ok`) and (b) the optional byte-rate
    token bucket has the bytes. Otherwise it waits, and the reason is counted.
+
+Counters (`counters`, all present from the start; see counter_names):
+    sent.frames / sent.bytes / sent.records   everything this radio put on the air (relays too;
+                                              records: own records only)
+    relayed                                   frames re-sent for another originator
+    airtime_us.<sub-band>                     own transmit time, per sub-band
+    deferred.duty_cycle / .rate_cap / .radio_busy   service calls that had something to send
+                                              but waited, by reason
+    dropped.queue_full / .too_large / .relay_queue_full   records or relays thrown away
+    superseded                                queued records replaced by a newer one (same key)
+    received.<reason>                         frames by decode reason (ok = new, accepted)
+    received.duplicate / .own / .records      repeats, own frames heard back, records delivered
+    tx_done.ok / tx_done.failed               the modem's transmit-finished events
 """
 from __future__ import annotations
 
