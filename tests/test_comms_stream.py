@@ -72,3 +72,15 @@ def test_truncated_tail_is_released_by_flush():
     d = Deframer()
     assert d.feed(f + f[:10]) and d.pending_bytes == 10
     assert d.flush() == [] and d.pending_bytes == 0
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.binary(max_size=80), max_size=10))
+def test_arbitrary_chunks_never_raise_and_every_byte_is_accounted(chunks):
+    d = Deframer()
+    for c in chunks:
+        d.feed(c)
+        st = d.stats
+        assert st["bytes_in"] == st["bytes_skipped"] + st["bytes_framed"] + d.pending_bytes
+    d.flush()
+    assert d.pending_bytes == 0 and d.stats["bytes_in"] == d.stats["bytes_skipped"] + d.stats["bytes_framed"]

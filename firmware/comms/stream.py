@@ -18,7 +18,9 @@ from firmware.comms.schema import FRAME_VERSION
 class Deframer:
     def __init__(self) -> None:
         self._buf = bytearray()
-        self.stats: dict[str, int] = {"bytes_in": 0, "bytes_skipped": 0, "frames": 0, "crc_rejects": 0}
+        # Invariant: bytes_in == bytes_skipped + bytes_framed + pending_bytes.
+        self.stats: dict[str, int] = {"bytes_in": 0, "bytes_skipped": 0, "bytes_framed": 0, "frames": 0,
+                                      "crc_rejects": 0}
 
     def feed(self, chunk: bytes) -> list[DecodeResult]:
         """Add bytes; return the frames completed by them (CRC-valid, in stream order;
@@ -62,6 +64,7 @@ class Deframer:
                 continue
             out.append(res)
             self.stats["frames"] += 1
+            self.stats["bytes_framed"] += want
             pos += want
         del buf[:pos]
         return out
