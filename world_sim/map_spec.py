@@ -136,7 +136,9 @@ def staging_poses(
 
     Pose 0 is the start itself when it has the clearance. The rest are taken nearest first by
     driving distance (8-connected steps through roomy cells), so a team shares one staging
-    area instead of being spread through walls. All poses face the start's yaw."""
+    area instead of being spread through walls. All poses face the start's yaw. The search
+    stays within staging_reach_m(n, spacing_m) of driving distance (a staging area, not the
+    whole map), so it costs the same on a 25 M-cell map as on a small one."""
     clearance_m_min = float(clearance_m)
     if n < 0:
         raise ValueError(f"n must be >= 0, got {n}")
@@ -148,21 +150,28 @@ def staging_poses(
     row0, col0 = occ.cell_of(x0, y0)
     if not (0 <= row0 < occ.rows and 0 <= col0 < occ.cols) or not occ.free[row0, col0]:
         raise ValueError(f"start ({x0:.3f}, {y0:.3f}) m is not on a free cell of map '{occ.name}'")
-    roomy = clearance_field_m(occ.free, occ.resolution_m) >= clearance_m_min
-    seed_cell = _nearest_roomy_cell(occ, roomy, row0, col0)
+    res = occ.resolution_m
+    reach_m = staging_reach_m(n, spacing_m)
+    # Work in a window: cells farther than reach_m are never visited, and treating the window
+    # edge as wall only changes the clearance of cells farther than that.
+    half = int(math.ceil((reach_m + clearance_m_min) / res)) + 2
+    r_lo, c_lo = max(row0 - half, 0), max(col0 - half, 0)
+    window = occ.free[r_lo:row0 + half + 1, c_lo:col0 + half + 1]
+    roomy = clearance_field_m(window, res) >= clearance_m_min
+    seed_cell = _nearest_roomy_cell(window, roomy, row0 - r_lo, col0 - c_lo)
     if seed_cell is None:
         raise ValueError(
-            f"no cell with {clearance_m_min:g} m clearance is reachable from the start "
-            f"({x0:.3f}, {y0:.3f}) m on map '{occ.name}'"
+            f"no cell with {clearance_m_min:g} m clearance is reachable within {reach_m:.1f} m "
+            f"of the start ({x0:.3f}, {y0:.3f}) m on map '{occ.name}'"
         )
-    res = occ.resolution_m
-    chosen_rc: list[tuple[float, float]] = []  # in cells, for the spacing test
+    chosen_rc: list[tuple[float, float]] = []  # window cells, for the spacing test
     poses: list[Pose] = []
     spacing_cells2 = (spacing_m / res) ** 2
-    if seed_cell == (row0, col0):
-        chosen_rc.append(((y0 - occ.origin_y_m) / res - 0.5, (x0 - occ.origin_x_m) / res - 0.5))
+    if seed_cell == (row0 - r_lo, col0 - c_lo):
+        chosen_rc.append(((y0 - occ.origin_y_m) / res - 0.5 - r_lo, (x0 - occ.origin_x_m) / res - 0.5 - c_lo))
         poses.append((x0, y0, yaw))
     # Dijkstra over roomy cells, octile step costs; ties broken by (row, col) for determinism
+    reach_cells = reach_m / res
     seen = np.zeros(roomy.shape, dtype=bool)
     heap = [(0.0, seed_cell[0], seed_cell[1])]
     best = {seed_cell: 0.0}
@@ -171,14 +180,15 @@ def staging_poses(
         dist, r, c = heapq.heappop(heap)
         if seen[r, c]:
             continue
+        if dist > reach_cells:
+            break
         seen[r, c] = True
         if all((r - cr) ** 2 + (c - cc) ** 2 >= spacing_cells2 - 1e-9 for cr, cc in chosen_rc):
             chosen_rc.append((float(r), float(c)))
-            x_m, y_m = occ.center_of(r, c)
-            poses.append((x_m, y_m, yaw))
+            poses.append((*occ.center_of(r + r_lo, c + c_lo), yaw))
         for dr, dc in neighbours:
             rr, cc = r + dr, c + dc
-            if 0 <= rr < occ.rows and 0 <= cc < occ.cols and roomy[rr, cc] and not seen[rr, cc]:
+            if 0 <= rr < roomy.shape[0] and 0 <= cc < roomy.shape[1] and roomy[rr, cc] and not seen[rr, cc]:
                 nd = dist + (math.sqrt(2.0) if dr and dc else 1.0)
                 if nd < best.get((rr, cc), math.inf):
                     best[(rr, cc)] = nd
@@ -186,16 +196,22 @@ def staging_poses(
     if len(poses) < n:
         raise ValueError(
             f"only {len(poses)} of {n} staging poses fit {spacing_m:g} m apart with "
-            f"{clearance_m_min:g} m clearance around the start on map '{occ.name}'"
+            f"{clearance_m_min:g} m clearance within {reach_m:.1f} m of the start on map '{occ.name}'"
         )
     return poses
 
 
-def _nearest_roomy_cell(occ: OccupancyMap, roomy: np.ndarray, row0: int, col0: int):
+def staging_reach_m(n: int, spacing_m: float) -> float:
+    """Driving distance from the start within which staging_poses looks: room for n poses
+    even along a single corridor, plus slack for corners."""
+    return spacing_m * (n + 5.0)
+
+
+def _nearest_roomy_cell(free: np.ndarray, roomy: np.ndarray, row0: int, col0: int):
     """The roomy cell nearest the start within the start's free component, or None."""
     if roomy[row0, col0]:
         return (row0, col0)
-    labels, _ = ndimage.label(occ.free, structure=_EIGHT_CONNECTED)
+    labels, _ = ndimage.label(free, structure=_EIGHT_CONNECTED)
     candidates = roomy & (labels == labels[row0, col0])
     if not candidates.any():
         return None

@@ -1,11 +1,14 @@
 """Seeded generated worlds: natural caves and mine tunnel networks.
 
-Both generators build a smooth "room" field at a coarse structure grid (0.5 m cells), positive
-where a robot may be, roughly in metres. At that scale they cut away every passage narrower
-than MIN_PASSAGE_M (a morphological opening by a disc, done with two distance transforms) and
-keep only the free component of the start. The field is then interpolated to the requested
-resolution in row strips, so a 500 x 500 m map at 0.1 m (25 M cells) never holds more than a
-few float strips at full resolution. Walls come out smooth, not blocky.
+Both generators build a smooth "room" field on a coarse structure grid (0.5 m cells), positive
+where a robot may be, roughly in metres: caves from three octaves of smoothed noise whose
+separate chambers are then joined by carved winding passages (a spanning tree over the rock
+gaps, plus a few loops); mines from drifts grown as capsules that keep a pillar of rock to every
+tunnel they do not join. At the coarse scale every passage narrower than MIN_PASSAGE_M is cut
+away (a morphological opening by a disc, done with two distance transforms) and only the start's
+component is kept. The field is then interpolated to the requested resolution in row strips,
+so a 500 x 500 m map at 0.1 m (25 M cells) never holds more than a few float strips at full
+resolution, and walls come out smooth, not blocky.
 
 Every random number comes from world_sim.seeding.stream(seed, "procgen.<kind>"), so a seed
 names one map bit for bit.
