@@ -106,6 +106,9 @@ def test_500m_map_is_quick(kind):
     assert occ.free[occ.cell_of(start[0], start[1])]
     assert 0.15 <= occ.free.mean() <= 0.5
     assert elapsed_s < 30.0  # a few seconds alone; generous for 2 shared cores
+    t0 = time.perf_counter()
+    assert len(staging_poses(occ, start, 8)) == 8
+    assert time.perf_counter() - t0 < 2.0  # searches a window, not the 25 M cells
 
 
 @pytest.mark.parametrize(
