@@ -3,6 +3,7 @@
 It knows its robot only through the `Hal` it is given (ArduPilot's setup/loop shape, with
 the HAL passed in rather than global). Every tick runs the tasks that are due:
 
+    radio    20 Hz  link layer: hear records, send queued ones within the airtime budget
     lidar    10 Hz  fold the newest scan into the local map (and move the window)
     control  20 Hz  drop topological vertices, follow the path, command the drive
     planning  1 Hz  waypoints, target choice, path planning, termination
@@ -13,24 +14,38 @@ import math
 
 import numpy as np
 
+from firmware.comms.link import LinkLayer
+from firmware.comms.schema import e_inf_bit_to_code
 from firmware.controller import PathFollower
 from firmware.explorer import Explorer
-from firmware.local_map import KeyframeStore, LocalMap, bin_scan_by_bearing
+from firmware.local_map import KeyframeStore, LocalMap, bin_scan_by_bearing, decode_keyframe, encode_keyframe
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task, TaskProfiler
-from firmware.comms.schema import e_inf_bit_to_code
+from firmware.team import STRATEGIES, Strategy, TeamView
 from firmware.topo_map import TopoMap
 from hal.bundle import Hal
+from hal.lora import RadioProfile
 from hal.samples import LidarScan
+
+# Link-layer priorities: where the robot is matters more than bookkeeping about old places.
+PRIORITY_MOTION = 2
+PRIORITY_STATUS = 3
+PRIORITY_INFO = 1
+# An information-change record is sent when a vertex's e_inf code falls by this much (one
+# code step is 4.4 %, so 8 steps is about a third), or to zero.
+INFO_CODE_STEP = 8
 
 
 class ExplorerAgent:
     MIN_REPLAN_US = 200_000  # event-triggered replanning is limited to 5 Hz
+
     def __init__(self, hal: Hal, params: ExplorationParams = ExplorationParams(),
-                 rates: TaskRates = TaskRates()) -> None:
+                 rates: TaskRates = TaskRates(), strategy: Strategy = STRATEGIES["greedy"],
+                 radio_profile: RadioProfile | None = None) -> None:
         self.hal = hal
         self.p = params
         self.rates = rates
+        self.strategy = strategy
         self.done = False
         self.status = "starting"
         self.ticks = 0
@@ -38,7 +53,13 @@ class ExplorerAgent:
         self._last_scan_binned: tuple[float, float, np.ndarray, float] | None = None
         self._last_vertex_xy: tuple[float, float] | None = None
         self._last_plan_us = -10**12
+        self.link = (LinkLayer(hal.robot_id, radio_profile)
+                     if strategy.shares_topology and radio_profile is not None else None)
+        if strategy.shares_dense_map and hal.mesh is None:
+            raise ValueError(f"strategy {strategy.name} shares dense maps but the robot has no mesh link")
+        self.team = TeamView(hal.robot_id, strategy)
         self.scheduler = Scheduler([
+            Task("radio", rates.radio_hz, self._task_radio),
             Task("lidar", rates.lidar_hz, self._task_lidar),
             Task("control", rates.control_hz, self._task_control),
             Task("planning", rates.planning_hz, self._task_planning),
@@ -55,20 +76,47 @@ class ExplorerAgent:
         self.keyframes = KeyframeStore(self.p.keyframe_bins)
         self.local_map = LocalMap(self.p, pose.x_m, pose.y_m, self.keyframes)
         self.topo = TopoMap(self.p.d_build_m, self.p.d_connect_m)
-        self.explorer = Explorer(self.p, self.local_map, self.topo)
+        self.explorer = Explorer(self.p, self.local_map, self.topo, self.team)
         self.follower = PathFollower(self.p, limits.max_v_mps, limits.max_omega_radps)
         self.status = "exploring"
 
     def tick(self, profiler: TaskProfiler | None = None) -> None:
+        """Run the due tasks. A finished robot keeps its radio up: it still relays what it
+        hears and sends what it has queued, like a real robot parked at its last goal."""
         self.ticks += 1
-        if self.done:
-            return
         self.scheduler.run_due(self.hal.clock.now_us(), profiler)
 
     # --- tasks ----------------------------------------------------------------------
+    def _task_radio(self, now_us: int) -> None:
+        if self.hal.mesh is not None and self.strategy.shares_dense_map:
+            for message in self.hal.mesh.receive():
+                self._on_keyframe(message)
+        if self.link is None:
+            return
+        self.link.service(now_us, self.hal.radio)
+        for _sender, rtype, v in self.link.received():
+            if rtype == "topo":
+                self.topo.add((v["sender_id"], v["x_cm"], v["y_cm"], v["z_cm"], v["presence"], v["e_inf_code"]))
+                if v["presence"]:
+                    self.team.positions[v["sender_id"]] = (v["x_cm"] / 100.0, v["y_cm"] / 100.0)
+            elif rtype == "pose":
+                if v["done"]:
+                    # A finished robot explores nothing more: MinPos must not count it.
+                    self.team.positions.pop(v["sender_id"], None)
+                else:
+                    self.team.positions[v["sender_id"]] = (v["x_cm"] / 100.0, v["y_cm"] / 100.0)
+
+    def _on_keyframe(self, message: bytes) -> None:
+        kf = decode_keyframe(message)
+        if kf is None or len(kf[3]) != self.keyframes.bins:
+            return
+        sender, x, y, ranges, range_max = kf
+        self.keyframes.add(x, y, ranges, range_max)
+        self.local_map.integrate_keyframe(x, y, ranges, range_max)
+
     def _task_lidar(self, now_us: int) -> None:
         scan: LidarScan | None = self.hal.lidar.latest_scan()
-        if scan is None:
+        if scan is None or self.done:
             return
         pose = self.hal.odometry.read()
         self.local_map.follow(pose.x_m, pose.y_m)
@@ -83,8 +131,10 @@ class ExplorerAgent:
         self.scans += 1
 
     def _task_control(self, now_us: int) -> None:
+        if self.done:
+            return
         pose = self.hal.odometry.read()
-        self._maybe_add_vertex(pose.x_m, pose.y_m, now_us)
+        self._maybe_add_vertex(pose.x_m, pose.y_m)
         if not self.follower.active and now_us - self._last_plan_us >= self.MIN_REPLAN_US:
             # The path ran out before the next planning slot: plan now instead of idling.
             self._task_planning(now_us)
@@ -94,22 +144,53 @@ class ExplorerAgent:
         self.hal.drive.command(v, omega)
 
     def _task_planning(self, now_us: int) -> None:
-        if self._last_scan_binned is None:
+        if self._last_scan_binned is None or self.done:
             return
         pose = self.hal.odometry.read()
         self._last_plan_us = now_us
         plan = self.explorer.plan(pose.x_m, pose.y_m, now_us)
+        self._report_information_changes()
         if plan.done:
             self.follower.clear()
             self.hal.drive.command(0.0, 0.0)
             self.done = True
             self.status = "complete"
+            if self.link is not None:
+                self.link.enqueue("pose", {
+                    "sender_id": self.hal.robot_id, "x_cm": round(pose.x_m * 100), "y_cm": round(pose.y_m * 100),
+                    "yaw_cdeg": round(math.degrees((pose.yaw_rad + math.pi) % (2 * math.pi) - math.pi) * 100),
+                    "speed_cmps": 0, "exploring": 0, "done": 1, "returning": 0,
+                    "vertex_count": min(len(self.topo), 4095)}, PRIORITY_STATUS, key="pose")
             return
         self.follower.set_path(plan.path_xy)
 
-    def _maybe_add_vertex(self, x_m: float, y_m: float, now_us: int) -> None:
-        """A vertex (and its keyframe) every d_build of travel: the robot's own record of
-        where it has been and what it saw there."""
+    # --- the shared topological map ---------------------------------------------------
+    def _vertex_information(self, extra_xy: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(vertex indices, positions, e_inf in bits) of the places this robot visited, plus
+        extra_xy (index -1): each waypoint's information counts at the closest one (eq. 4)."""
+        idx = np.nonzero(self.topo.visited_by(self.hal.robot_id))[0] if len(self.topo) else np.zeros(0, np.int64)
+        xy = self.topo.positions()[idx] if len(idx) else np.zeros((0, 2))
+        if extra_xy is not None:
+            idx = np.append(idx, -1)
+            xy = np.vstack([xy, [extra_xy]])
+        e = np.zeros(len(xy))
+        items = self.explorer.waypoints.items
+        if len(xy) and items:
+            w = np.array([(it.x_m, it.y_m) for it in items])
+            nearest = np.argmin((w[:, None, 0] - xy[None, :, 0]) ** 2 + (w[:, None, 1] - xy[None, :, 1]) ** 2, axis=1)
+            np.add.at(e, nearest, [it.e_bit for it in items])
+        return idx, xy, e
+
+    def _publish(self, record: tuple[int, int, int, int, int, int], priority: int) -> None:
+        """Own records go into the own map at once and onto the air if the team shares."""
+        self.topo.add(record)
+        if self.link is not None:
+            names = ("sender_id", "x_cm", "y_cm", "z_cm", "presence", "e_inf_code")
+            self.link.enqueue("topo", dict(zip(names, record)), priority)
+
+    def _maybe_add_vertex(self, x_m: float, y_m: float) -> None:
+        """A record (and a keyframe) every d_build of travel: where the robot has been, what
+        it saw there, and the information it still expects around it (Table I)."""
         last = self._last_vertex_xy
         if last is not None and math.hypot(x_m - last[0], y_m - last[1]) < self.p.d_build_m:
             return
@@ -117,6 +198,22 @@ class ExplorerAgent:
             return
         kx, ky, ranges, range_max = self._last_scan_binned
         self.keyframes.add(kx, ky, ranges, range_max)
-        e_inf = self.explorer.waypoints.total_entropy_near(x_m, y_m, self.p.local_map_size_m / 2)
-        self.topo.add((self.hal.robot_id, round(x_m * 100), round(y_m * 100), 0, 1, e_inf_bit_to_code(e_inf)))
+        if self.hal.mesh is not None and self.strategy.shares_dense_map:
+            self.hal.mesh.broadcast(encode_keyframe(self.hal.robot_id, kx, ky, ranges, range_max))
+        _, _, e = self._vertex_information((x_m, y_m))
+        self._publish((self.hal.robot_id, round(x_m * 100), round(y_m * 100), 0, 1, e_inf_bit_to_code(e[-1])),
+                      PRIORITY_MOTION)
         self._last_vertex_xy = (x_m, y_m)
+
+    def _report_information_changes(self) -> None:
+        """A record when the information at a visited vertex has clearly dropped below what
+        the shared map says (a waypoint there was covered). Rises are not sent: the shared
+        map keeps the minimum anyway."""
+        idx, xy, e = self._vertex_information()
+        if not len(idx):
+            return
+        current = self.topo.e_inf_codes()[idx]
+        for (x, y), e_bit, old in zip(xy, e, current):
+            code = e_inf_bit_to_code(float(e_bit))
+            if code < old and (code == 0 or old - code >= INFO_CODE_STEP):
+                self._publish((self.hal.robot_id, round(x * 100), round(y * 100), 0, 0, code), PRIORITY_INFO)

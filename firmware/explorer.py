@@ -1,5 +1,6 @@
-"""One planning cycle of the explorer: map layers, reachability, waypoints, target choice,
-and a path to the target through the local map or, beyond it, the topological graph."""
+"""One planning cycle of the explorer: map layers, reachability, waypoints, target choice
+(Greedy or MinPos, Bayer & Faigl IV-C), and a path to the target through the local map or,
+beyond it, along the topological graph."""
 from __future__ import annotations
 
 import math
@@ -10,8 +11,9 @@ import numpy as np
 from firmware import kernels
 from firmware.local_map import LocalMap
 from firmware.params import ExplorationParams
+from firmware.team import TeamView
 from firmware.topo_map import TopoMap
-from firmware.waypoints import Waypoint, WaypointSet
+from firmware.waypoints import WaypointSet
 
 
 @dataclass
@@ -19,13 +21,13 @@ class Target:
     x_m: float
     y_m: float
     cost_m: float
+    from_team: bool = False    # a vertex with obtainable information from the shared map (W_inf)
 
 
 @dataclass
 class Plan:
     target: Target | None
     path_xy: np.ndarray            # world points to follow, robot first
-    reachable_entropy_bit: float   # information of the waypoints reachable in the local map
     done: bool                     # nothing left to explore that this robot can reach
 
 
@@ -54,23 +56,48 @@ def extract_path(parent: np.ndarray, goal_i: int, goal_j: int) -> list[tuple[int
     return cells
 
 
-class Explorer:
-    """Greedy exploration over the local map and the robot's topological map."""
+def line_of_sight(state: np.ndarray, i0: int, j0: int, i1: int, j1: int) -> bool:
+    """No OCCUPIED cell on the straight segment between two cells of the local map."""
+    steps = max(abs(i1 - i0), abs(j1 - j0))
+    if steps == 0:
+        return True
+    t = np.linspace(0.0, 1.0, steps + 1)
+    ii = np.round(i0 + (i1 - i0) * t).astype(np.int64)
+    jj = np.round(j0 + (j1 - j0) * t).astype(np.int64)
+    return not bool((state[ii, jj] == kernels.OCCUPIED).any())
 
-    def __init__(self, params: ExplorationParams, local_map: LocalMap, topo: TopoMap) -> None:
+
+@dataclass
+class _Candidate:
+    x_m: float
+    y_m: float
+    e_bit: float
+    from_team: bool
+    cost_m: float = math.inf        # this robot's cost (local map where it can, else the graph)
+    graph_cost_m: float = math.inf  # this robot's cost on the topological graph (for MinPos)
+    rank: int = 0
+
+
+class Explorer:
+    def __init__(self, params: ExplorationParams, local_map: LocalMap, topo: TopoMap, team: TeamView) -> None:
         self.p = params
         self.map = local_map
         self.topo = topo
+        self.team = team
         self.waypoints = WaypointSet(params)
         self.target: Target | None = None
         self._best_progress_m = math.inf
         self._progress_stamp_us = 0
         self.dropped_unreachable = 0
         self.dropped_stalled = 0
+        self.dropped_by_presence = 0
         self.reached = 0
 
     def _path_xy(self, cells: list[tuple[int, int]]) -> np.ndarray:
         return np.array([self.map.center_of(i, j) for i, j in cells], np.float64).reshape(-1, 2)
+
+    def _in_window(self, i: int, j: int) -> bool:
+        return 0 <= i < self.map.n and 0 <= j < self.map.n
 
     def plan(self, x_m: float, y_m: float, now_us: int) -> Plan:
         p = self.p
@@ -79,15 +106,17 @@ class Explorer:
         ri, rj = self.map.cell_of(x_m, y_m)
         start = nearest_traversable(layers.traversable, ri, rj, int(math.ceil(0.8 / res)))
         if start is None:
-            # Boxed in by the safety margin (e.g. after being pushed near a wall): plan from
-            # the nearest known-free cell instead, so the robot can back out.
+            # Boxed in by the safety margin (pushed near a wall): plan from the nearest
+            # known-free cell instead, so the robot can back out.
             start = nearest_traversable(layers.state == kernels.FREE, ri, rj, int(math.ceil(0.8 / res)))
             if start is None:
-                return Plan(None, np.zeros((0, 2)), 0.0, False)
+                return Plan(None, np.zeros((0, 2)), False)
             layers.traversable[start] = True
         dist, parent = kernels.dijkstra_grid(layers.traversable, layers.cell_cost, start[0], start[1])
         reachable = np.isfinite(dist)
-        self.waypoints.update(self.map, layers.state, reachable)
+        self.waypoints.update(self.map, layers.sight, reachable)
+        if self.team.strategy.shares_topology:
+            self._drop_waypoints_seen_by_others(layers.state)
 
         # A target reached is done with: its surroundings are now observed (or unobservable).
         if self.target is not None and math.hypot(self.target.x_m - x_m, self.target.y_m - y_m) < p.waypoint_reached_m:
@@ -96,81 +125,139 @@ class Explorer:
             self.target = None
 
         topo_src, topo_dist, topo_parent = self.topo.costs_from(x_m, y_m)
-        reachable_entropy = 0.0
-        candidates: list[tuple[float, int, Waypoint]] = []
-        for k, w in enumerate(self.waypoints.items):
-            wi, wj = self.map.cell_of(w.x_m, w.y_m)
-            if 0 <= wi < self.map.n and 0 <= wj < self.map.n and reachable[wi, wj]:
-                cost = float(dist[wi, wj]) * res
-                reachable_entropy += w.e_bit
-            else:
-                cost, _ = self.topo.cost_to(topo_dist, w.x_m, w.y_m)
-                if topo_src is not None:
-                    src_x, src_y = self.topo.positions()[topo_src]
-                    cost += math.hypot(src_x - x_m, src_y - y_m)
-            candidates.append((cost, k, w))
+        to_src_m = 0.0
+        if topo_src is not None:
+            sx, sy = self.topo.positions()[topo_src]
+            to_src_m = math.hypot(sx - x_m, sy - y_m)
+        candidates = self._candidates()
+        for c in candidates:
+            graph_cost, _ = self.topo.cost_to(topo_dist, c.x_m, c.y_m)
+            c.graph_cost_m = graph_cost + to_src_m
+            wi, wj = self.map.cell_of(c.x_m, c.y_m)
+            c.cost_m = float(dist[wi, wj]) * res if self._in_window(wi, wj) and reachable[wi, wj] else c.graph_cost_m
+        if self.team.strategy.ranking == "minpos":
+            self._minpos_ranks(candidates)
 
         while candidates:
-            choice = self._choose(candidates)
-            w = choice[2]
-            path = self._route(w, dist, parent, reachable, topo_src, topo_dist, topo_parent, x_m, y_m)
+            c = self._choose(candidates)
+            path = self._route(c, parent, reachable, topo_src, topo_dist, topo_parent, x_m, y_m)
             if path is not None:
-                self._track_progress(w, choice[0], now_us)
+                self._track_progress(c, now_us)
                 if self.target is None:
-                    return Plan(None, np.zeros((0, 2)), reachable_entropy, False)
-                return Plan(self.target, path, reachable_entropy, False)
-            # No way there from here, not even through the topological map: drop it for good.
-            self.waypoints.ban(w.x_m, w.y_m)
+                    return Plan(None, np.zeros((0, 2)), False)
+                return Plan(self.target, path, False)
+            # No way there from here, not even along the topological map: drop it for good.
+            self.waypoints.ban(c.x_m, c.y_m)
             self.dropped_unreachable += 1
-            candidates = [c for c in candidates if c[2] in self.waypoints.items]
+            candidates = [k for k in candidates if not self.waypoints.is_banned(k.x_m, k.y_m)]
             self.target = None
         self.target = None
-        return Plan(None, np.zeros((0, 2)), 0.0, True)
+        return Plan(None, np.zeros((0, 2)), True)
 
-    def _choose(self, candidates: list[tuple[float, int, Waypoint]]) -> tuple[float, int, Waypoint]:
-        """Greedy: the closest target. The current target is kept unless another is clearly
-        closer, so the robot does not dither between two nearly equal choices."""
-        best = min(candidates, key=lambda c: (c[0], c[1]))
+    # --- targets (eq. 5) --------------------------------------------------------------
+    def _candidates(self) -> list[_Candidate]:
+        """W_t = W (own waypoints) united with W_inf (vertices of the shared map with
+        obtainable information that this robot has not visited), minus banned places."""
+        out = [_Candidate(w.x_m, w.y_m, w.e_bit, False) for w in self.waypoints.items]
+        if self.team.strategy.shares_topology and len(self.topo):
+            xy = self.topo.positions()
+            open_ = (self.topo.e_inf_codes() > 0) & ~self.topo.visited_by(self.team.robot_id)
+            open_[open_] &= ~self.waypoints.banned_mask(xy[open_, 0], xy[open_, 1])
+            out.extend(_Candidate(float(xy[k, 0]), float(xy[k, 1]), 0.0, True) for k in np.nonzero(open_)[0])
+        return out
+
+    def _drop_waypoints_seen_by_others(self, state: np.ndarray) -> None:
+        """Bayer & Faigl: a waypoint is removed when another robot reported its presence
+        closer than d_cam. We also ask for a clear line of sight in our own local map, so a
+        robot on the far side of a wall does not cancel a room nobody has seen."""
+        if not len(self.topo) or not self.waypoints.items:
+            return
+        xy = self.topo.positions()
+        others = np.nonzero(self.topo.visited_by_others(self.team.robot_id))[0]
+        if len(others) == 0:
+            return
+        keep = []
+        for w in self.waypoints.items:
+            d = np.hypot(xy[others, 0] - w.x_m, xy[others, 1] - w.y_m)
+            near = others[d < self.p.d_cam_m]
+            wi, wj = self.map.cell_of(w.x_m, w.y_m)
+            seen = False
+            if self._in_window(wi, wj):
+                for v in near:
+                    vi, vj = self.map.cell_of(xy[v, 0], xy[v, 1])
+                    if self._in_window(vi, vj) and line_of_sight(state, wi, wj, vi, vj):
+                        seen = True
+                        break
+            if seen:
+                self.dropped_by_presence += 1
+            else:
+                keep.append(w)
+        self.waypoints.items = keep
+
+    def _minpos_ranks(self, candidates: list[_Candidate]) -> None:
+        """Eq. 6: a target's rank counts the other robots with a shorter topological path
+        to it than this robot's."""
+        for c in candidates:
+            c.rank = 0
+        for rid, (ox, oy) in sorted(self.team.positions.items()):
+            if rid == self.team.robot_id:
+                continue
+            src, dist, _ = self.topo.costs_from(ox, oy)
+            if src is None:
+                continue
+            sx, sy = self.topo.positions()[src]
+            lead = math.hypot(sx - ox, sy - oy)
+            for c in candidates:
+                other, _ = self.topo.cost_to(dist, c.x_m, c.y_m)
+                if other + lead < c.graph_cost_m:
+                    c.rank += 1
+
+    def _choose(self, candidates: list[_Candidate]) -> _Candidate:
+        """Lowest rank (MinPos; all ranks are 0 under Greedy), then the closest. The current
+        target is kept unless another is clearly better, so the robot does not dither."""
+        key = lambda c: (c.rank, c.cost_m, c.x_m, c.y_m)  # noqa: E731
+        best = min(candidates, key=key)
         if self.target is not None:
             for c in candidates:
-                if c[2].x_m == self.target.x_m and c[2].y_m == self.target.y_m and best[0] >= 0.8 * c[0]:
+                if (c.x_m, c.y_m) == (self.target.x_m, self.target.y_m) and c.rank <= best.rank \
+                        and best.cost_m >= 0.8 * c.cost_m:
                     return c
         return best
 
-    def _track_progress(self, w: Waypoint, cost_m: float, now_us: int) -> None:
-        same = self.target is not None and (self.target.x_m, self.target.y_m) == (w.x_m, w.y_m)
+    def _track_progress(self, c: _Candidate, now_us: int) -> None:
+        same = self.target is not None and (self.target.x_m, self.target.y_m) == (c.x_m, c.y_m)
         if not same:
-            self.target = Target(w.x_m, w.y_m, cost_m)
-            self._best_progress_m = cost_m
+            self.target = Target(c.x_m, c.y_m, c.cost_m, c.from_team)
+            self._best_progress_m = c.cost_m
             self._progress_stamp_us = now_us
             return
-        self.target.cost_m = cost_m
-        if cost_m < self._best_progress_m - 0.3:
-            self._best_progress_m = cost_m
+        self.target.cost_m = c.cost_m
+        if c.cost_m < self._best_progress_m - 0.3:
+            self._best_progress_m = c.cost_m
             self._progress_stamp_us = now_us
         elif now_us - self._progress_stamp_us > self.p.stall_timeout_s * 1e6:
-            # Planned paths keep promising but the robot gets no closer: give up on it.
-            self.waypoints.ban(w.x_m, w.y_m)
+            # Paths keep promising but the robot gets no closer: give up on this target.
+            self.waypoints.ban(c.x_m, c.y_m)
             self.dropped_stalled += 1
             self.target = None
 
-    def _route(self, w: Waypoint, dist, parent, reachable, topo_src, topo_dist, topo_parent, x_m: float, y_m: float) -> np.ndarray | None:
-        """A local path to the waypoint, or to the farthest vertex on the topological route
+    # --- routes -----------------------------------------------------------------------
+    def _route(self, c: _Candidate, parent, reachable, topo_src, topo_dist, topo_parent,
+               x_m: float, y_m: float) -> np.ndarray | None:
+        """A local path to the target, or to the farthest vertex on the topological route
         towards it that the local map can reach."""
-        n = self.map.n
-        wi, wj = self.map.cell_of(w.x_m, w.y_m)
-        if 0 <= wi < n and 0 <= wj < n and reachable[wi, wj]:
+        wi, wj = self.map.cell_of(c.x_m, c.y_m)
+        if self._in_window(wi, wj) and reachable[wi, wj]:
             return self._path_xy(extract_path(parent, wi, wj))
         if topo_src is None:
             return None
-        _, goal_vertex = self.topo.cost_to(topo_dist, w.x_m, w.y_m)
+        _, goal_vertex = self.topo.cost_to(topo_dist, c.x_m, c.y_m)
         if goal_vertex is None:
             return None
-        route = self.topo.path(topo_parent, goal_vertex)
         xy = self.topo.positions()
-        for v in reversed(route):
+        for v in reversed(self.topo.path(topo_parent, goal_vertex)):
             vi, vj = self.map.cell_of(xy[v, 0], xy[v, 1])
-            if not (0 <= vi < n and 0 <= vj < n):
+            if not self._in_window(vi, vj):
                 continue
             hit = nearest_traversable(reachable, vi, vj, 3)
             if hit is None:

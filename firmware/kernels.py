@@ -19,6 +19,19 @@ OCCUPIED = np.uint8(2)
 
 
 @njit(cache=True)
+def bearing_bin(dx, dy, bin0_rad, bin_rad, n):
+    """Index of the bearing bin (width bin_rad, bin 0 centred on bin0_rad in [0, 2 pi))
+    that the direction (dx, dy) falls in."""
+    a = math.atan2(dy, dx) - bin0_rad
+    while a < 0.0:
+        a += 2.0 * math.pi
+    b = int(a / bin_rad + 0.5)
+    while b >= n:
+        b -= n
+    return b
+
+
+@njit(cache=True)
 def polar_fill(logodds, row0, col0, res, px, py, bin0_rad, bin_rad, ranges_m, range_max_m,
                hit, miss, lmin, lmax, r_lo, r_hi, c_lo, c_hi):
     """Fold one scan, binned by bearing, into the log-odds window, inside rows [r_lo, r_hi)
@@ -32,33 +45,33 @@ def polar_fill(logodds, row0, col0, res, px, py, bin0_rad, bin_rad, ranges_m, ra
     n = ranges_m.shape[0]
     rows, cols = logodds.shape
     half = 0.5 * res
+    two_pi = 2.0 * math.pi
+    bin0 = bin0_rad % two_pi
     # Only as far as the longest beam: in tunnels that is far less than the sensor's range.
     longest = 0.0
     for b in range(n):
         r = ranges_m[b]
         if r > longest:
             longest = r
-    reach = min(longest, range_max_m) + res
-    # Cells the scan can touch: a disc of radius range_max around the sensor.
+    longest = min(longest, range_max_m)
+    reach = longest + res
+    reach2 = longest * longest
     i_lo = max(r_lo, int(math.floor((py - reach) / res)) - row0)
     i_hi = min(r_hi, int(math.floor((py + reach) / res)) - row0 + 1)
     j_lo = max(c_lo, int(math.floor((px - reach) / res)) - col0)
     j_hi = min(c_hi, int(math.floor((px + reach) / res)) - col0 + 1)
-    two_pi = 2.0 * math.pi
     for i in range(max(i_lo, 0), min(i_hi, rows)):
         cy = (row0 + i + 0.5) * res - py
         for j in range(max(j_lo, 0), min(j_hi, cols)):
             cx = (col0 + j + 0.5) * res - px
-            d = math.sqrt(cx * cx + cy * cy)
-            if d > range_max_m:
-                continue
-            a = (math.atan2(cy, cx) - bin0_rad) % two_pi
-            b = int(math.floor(a / bin_rad + 0.5)) % n
-            r = ranges_m[b]
+            d2 = cx * cx + cy * cy
+            if d2 >= reach2:
+                continue  # no beam reaches this far: nothing to learn (cheap test first)
+            r = ranges_m[bearing_bin(cx, cy, bin0, bin_rad, n)]
             if not r > 0.0:
                 continue
             limit = r if r >= range_max_m else r - half
-            if d < limit:
+            if d2 < limit * limit and limit > 0.0:
                 v = logodds[i, j] + miss
                 logodds[i, j] = v if v > lmin else lmin
     for b in range(n):

@@ -8,6 +8,7 @@ unexplored again.
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,13 +69,55 @@ def bin_scan_by_bearing(yaw_rad: float, angle_min_rad: float, angle_increment_ra
     return out
 
 
+# A keyframe on the mesh link: sender u8, x_cm i32, y_cm i32, range_max_cm u16, bins u16,
+# then one u16 range in cm per bin (little-endian). 13 + 2 * bins bytes: 733 B at 360 bins.
+_KEYFRAME_HEAD = struct.Struct("<BiiHH")
+
+
+def encode_keyframe(sender_id: int, x_m: float, y_m: float, ranges_by_bearing_m: np.ndarray, range_max_m: float) -> bytes:
+    ranges_cm = np.clip(np.round(ranges_by_bearing_m * 100.0), 0, 65535).astype("<u2")
+    return _KEYFRAME_HEAD.pack(sender_id, round(x_m * 100), round(y_m * 100),
+                               min(65535, round(range_max_m * 100)), len(ranges_cm)) + ranges_cm.tobytes()
+
+
+def decode_keyframe(data: bytes) -> tuple[int, float, float, np.ndarray, float] | None:
+    """(sender, x_m, y_m, ranges_m per bearing bin, range_max_m), or None if malformed."""
+    if len(data) < _KEYFRAME_HEAD.size:
+        return None
+    sender, x_cm, y_cm, range_max_cm, bins = _KEYFRAME_HEAD.unpack_from(data)
+    if bins == 0 or len(data) != _KEYFRAME_HEAD.size + 2 * bins or range_max_cm == 0:
+        return None
+    ranges = np.frombuffer(data, "<u2", bins, _KEYFRAME_HEAD.size).astype(np.float64) / 100.0
+    return sender, x_cm / 100.0, y_cm / 100.0, ranges, range_max_cm / 100.0
+
+
 @dataclass
 class MapLayers:
     """What planning needs, derived from the log-odds once per planning cycle."""
 
     state: np.ndarray          # UNKNOWN / FREE / OCCUPIED per cell
+    sight: np.ndarray          # state with unknown cells next to walls closed, for ray casting
     traversable: np.ndarray    # bool: known free and radius + margin away from obstacles
     cell_cost: np.ndarray      # >= 1, grows near walls and unknown space
+
+
+def close_wall_gaps(state: np.ndarray) -> np.ndarray:
+    """Unknown cells touching a wall cell count as wall for line of sight. Far walls are hit
+    by beams more than a cell apart, so their occupied cells have unknown gaps; rays slipping
+    through them would count the never-observable rock behind as information."""
+    occ = state == kernels.OCCUPIED
+    grown = occ.copy()
+    grown[1:, :] |= occ[:-1, :]
+    grown[:-1, :] |= occ[1:, :]
+    grown[:, 1:] |= occ[:, :-1]
+    grown[:, :-1] |= occ[:, 1:]
+    grown[1:, 1:] |= occ[:-1, :-1]
+    grown[1:, :-1] |= occ[:-1, 1:]
+    grown[:-1, 1:] |= occ[1:, :-1]
+    grown[:-1, :-1] |= occ[1:, 1:]
+    out = state.copy()
+    out[grown & (state == kernels.UNKNOWN)] = kernels.OCCUPIED
+    return out
 
 
 class LocalMap:
@@ -107,6 +150,11 @@ class LocalMap:
         return (self.col0 * res, (self.col0 + self.n) * res, self.row0 * res, (self.row0 + self.n) * res)
 
     # --- updates ------------------------------------------------------------------
+    def integrate_keyframe(self, x_m: float, y_m: float, ranges_by_bearing_m: np.ndarray, range_max_m: float) -> None:
+        """Fold a peer's keyframe (dense-map sharing) into the whole window."""
+        self._fill(x_m, y_m, 0.0, 2 * math.pi / len(ranges_by_bearing_m),
+                   np.ascontiguousarray(ranges_by_bearing_m, np.float64), range_max_m, (0, self.n, 0, self.n))
+
     def _fill(self, px, py, bin0, binw, ranges, range_max, region) -> None:
         p = self.p
         kernels.polar_fill(self.logodds, self.row0, self.col0, p.resolution_m, px, py, bin0, binw,
@@ -169,4 +217,4 @@ class LocalMap:
         traversable = (state == kernels.FREE) & (d_occ_cells >= keep_out_cells)
         near = np.clip((p.clearance_cost_m - d_block_cells * p.resolution_m) / p.clearance_cost_m, 0.0, 1.0)
         cell_cost = (1.0 + p.clearance_cost_weight * near).astype(np.float64)
-        return MapLayers(state=state, traversable=traversable, cell_cost=cell_cost)
+        return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable, cell_cost=cell_cost)

@@ -38,11 +38,11 @@ class ExplorationParams:
     ban_radius_m: float = 1.5
     stall_timeout_s: float = 20.0            # no progress towards the target for this long: drop it
     # Log-odds occupancy update.
-    logodds_hit: float = 0.85
+    logodds_hit: float = 1.2
     logodds_miss: float = -0.4
     logodds_min: float = -4.0
     logodds_max: float = 4.0
-    logodds_occupied: float = 0.5
+    logodds_occupied: float = 0.3
     logodds_free: float = -0.3
     # Keyframes: every topological vertex keeps its scan binned to this many bearings, so a
     # place that left the local window is restored when the robot comes back.

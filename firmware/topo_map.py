@@ -210,6 +210,13 @@ class TopoMap:
         word = self._ids[:, robot_id >> 6]
         return (word >> np.uint64(robot_id & 63)) & np.uint64(1) == np.uint64(1)
 
+    def visited_by_others(self, robot_id: int) -> np.ndarray:
+        """Per vertex: did any robot but robot_id report its presence there?"""
+        self._ensure_built()
+        ids = self._ids.copy()
+        ids[:, robot_id >> 6] &= ~(np.uint64(1) << np.uint64(robot_id & 63))
+        return (ids != 0).any(axis=1)
+
     def nearest(self, x_m: float, y_m: float) -> int | None:
         xy = self.positions()
         if len(xy) == 0:

@@ -44,9 +44,16 @@ class WaypointSet:
         self.items: list[Waypoint] = []
         self.banned: list[tuple[float, float]] = []
 
+    def banned_mask(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """Per point: within ban_radius of a place dropped for good?"""
+        if not self.banned:
+            return np.zeros(len(xs), bool)
+        b = np.asarray(self.banned)
+        d2 = (xs[:, None] - b[None, :, 0]) ** 2 + (ys[:, None] - b[None, :, 1]) ** 2
+        return (d2 < self.p.ban_radius_m ** 2).any(axis=1)
+
     def is_banned(self, x_m: float, y_m: float) -> bool:
-        r2 = self.p.ban_radius_m ** 2
-        return any((x_m - bx) ** 2 + (y_m - by) ** 2 < r2 for bx, by in self.banned)
+        return bool(self.banned_mask(np.array([x_m]), np.array([y_m]))[0])
 
     def ban(self, x_m: float, y_m: float) -> None:
         """Drop every waypoint near this point for good."""
@@ -86,18 +93,22 @@ class WaypointSet:
         counts = kernels.observable_unknown(state, cand[:, 0].astype(np.int64), cand[:, 1].astype(np.int64),
                                             p.info_rays, max_range_cells)
         e_bit = counts * p.entropy_per_cell_bit
+        xs = (local_map.col0 + cand[:, 1] + 0.5) * res
+        ys = (local_map.row0 + cand[:, 0] + 0.5) * res
+        r2 = p.waypoint_cluster_radius_m ** 2
+        ok = (e_bit >= p.min_cluster_entropy_bit) & ~self.banned_mask(xs, ys)
+        if self.items:
+            w = np.array([(it.x_m, it.y_m) for it in self.items])
+            ok &= ~(((xs[:, None] - w[None, :, 0]) ** 2 + (ys[:, None] - w[None, :, 1]) ** 2) < r2).any(axis=1)
         # Highest information first; ties by cell index so the choice is a pure function.
         order = np.lexsort((cand[:, 1], cand[:, 0], -e_bit))
-        r2 = p.waypoint_cluster_radius_m ** 2
-        for k in order:
-            if e_bit[k] < p.min_cluster_entropy_bit:
-                break
-            x, y = local_map.center_of(int(cand[k, 0]), int(cand[k, 1]))
-            if self.is_banned(x, y):
+        added: list[Waypoint] = []
+        for k in order[ok[order]]:
+            x, y = float(xs[k]), float(ys[k])
+            if any((a.x_m - x) ** 2 + (a.y_m - y) ** 2 < r2 for a in added):
                 continue
-            if any((w.x_m - x) ** 2 + (w.y_m - y) ** 2 < r2 for w in self.items):
-                continue
-            self.items.append(Waypoint(x, y, float(e_bit[k])))
+            added.append(Waypoint(x, y, float(e_bit[k])))
+        self.items.extend(added)
 
     def total_entropy_near(self, x_m: float, y_m: float, radius_m: float) -> float:
         r2 = radius_m * radius_m

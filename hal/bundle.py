@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hal.interfaces import Clock, DriveBase, Lidar, Odometry, RadioModem, UwbRanger, WifiAoa
+from hal.interfaces import Clock, DriveBase, Lidar, MeshLink, Odometry, RadioModem, UwbRanger, WifiAoa
 
 
 @dataclass(frozen=True)
@@ -16,3 +16,4 @@ class Hal:
     uwb: UwbRanger
     aoa: WifiAoa
     radio: RadioModem
+    mesh: MeshLink | None = None   # only robots fitted with a mesh link (dense-map baselines)

@@ -60,3 +60,14 @@ class RadioModem(Protocol):
 
     def poll(self) -> tuple[RadioEvent, ...]:
         """Frames received and transmissions finished since the last call, oldest first."""
+
+
+@runtime_checkable
+class MeshLink(Protocol):
+    """A high-bandwidth broadcast link (WiFi mesh) for the dense-map baselines that the
+    LoRa schemes are compared against. Messages are whole byte strings."""
+
+    def broadcast(self, message: bytes) -> None: ...
+
+    def receive(self) -> tuple[bytes, ...]:
+        """Messages from other robots since the last call, oldest first."""

@@ -7,6 +7,7 @@ function of its configuration and seed.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import time
@@ -18,8 +19,11 @@ import numpy as np
 from firmware.agent import ExplorerAgent
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import TaskProfiler
+from firmware.team import strategy as strategy_named
 from hal.lora import profile as radio_profile
+from hal.sim.clock import SimClock
 from hal.sim.factory import build_sim_hal
+from hal.sim.mesh import SimMeshBus
 from hal.sim.radio import SimRadioModem
 from radio_sim.channel import Channel
 from world_sim.map_spec import resolve_map, staging_poses
@@ -36,6 +40,7 @@ class MissionConfig:
     seed: int = 0
     max_sim_s: float = 7200.0
     radio: str = "ideal-100Bps"
+    strategy: str = "greedy"
     start_xy: tuple[float, float] | None = None
 
 
@@ -72,6 +77,7 @@ class MissionResult:
             "seed": self.config.seed,
             "robots": self.config.robots,
             "radio": self.config.radio,
+            "strategy": self.config.strategy,
             "coverage": round(self.coverage, 6),
             "path_length_m": [round(p, 3) for p in self.path_length_m],
             "t_total_s": round(self.t_total_s, 3),
@@ -105,14 +111,18 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     world = World(occ, poses, cfg.seed, world_params)
     reachable = reachable_free(occ, (poses[0][0], poses[0][1]))
     reachable_cells = int(reachable.sum())
-    channel = Channel(radio_profile(cfg.radio), cfg.seed, occupancy=occ)
+    profile = radio_profile(cfg.radio)
+    strategy = strategy_named(cfg.strategy)
+    channel = Channel(profile, cfg.seed, occupancy=occ)
+    mesh = SimMeshBus()
+    clock = SimClock(world)
     agents = []
     for i in range(cfg.robots):
         channel.attach(i, lambda i=i: world.true_pose(i)[:2])
-        clock_hal = build_sim_hal(world, i, radio=None)
-        radio = SimRadioModem(channel, i, clock_hal.clock)
-        hal = build_sim_hal(world, i, radio=radio)
-        agent = ExplorerAgent(hal, params, rates)
+        hal = build_sim_hal(world, i, radio=SimRadioModem(channel, i, clock))
+        if strategy.shares_dense_map:
+            hal = dataclasses.replace(hal, mesh=mesh.endpoint(i))
+        agent = ExplorerAgent(hal, params, rates, strategy, profile)
         agent.setup()
         agents.append(agent)
 

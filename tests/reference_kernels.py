@@ -19,9 +19,13 @@ def polar_fill(logodds, row0, col0, res, px, py, bin0, binw, ranges, range_max, 
             cx = (col0 + j + 0.5) * res - px
             cy = (row0 + i + 0.5) * res - py
             d = math.hypot(cx, cy)
-            if d > range_max:
+            longest = min(max(ranges), range_max)
+            if d >= longest:
                 continue
-            b = int(math.floor(((math.atan2(cy, cx) - bin0) % (2 * math.pi)) / binw + 0.5)) % n
+            a = math.atan2(cy, cx) - bin0 % (2 * math.pi)
+            while a < 0:
+                a += 2 * math.pi
+            b = int(math.floor(a / binw + 0.5)) % n
             r = ranges[b]
             if not r > 0:
                 continue
