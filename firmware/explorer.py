@@ -92,6 +92,7 @@ class Explorer:
         self.dropped_stalled = 0
         self.dropped_by_presence = 0
         self.reached = 0
+        self._strikes: dict[tuple[float, float], int] = {}
 
     def _path_xy(self, cells: list[tuple[int, int]]) -> np.ndarray:
         return np.array([self.map.center_of(i, j) for i, j in cells], np.float64).reshape(-1, 2)
@@ -104,11 +105,11 @@ class Explorer:
         res = p.resolution_m
         layers = self.map.layers()
         ri, rj = self.map.cell_of(x_m, y_m)
-        start = nearest_traversable(layers.traversable, ri, rj, int(math.ceil(0.8 / res)))
+        start = nearest_traversable(layers.traversable, ri, rj, int(math.ceil(p.escape_radius_m / res)))
         if start is None:
-            # Boxed in by the safety margin (pushed near a wall): plan from the nearest
-            # known-free cell instead, so the robot can back out.
-            start = nearest_traversable(layers.state == kernels.FREE, ri, rj, int(math.ceil(0.8 / res)))
+            # Boxed in by the safety margin (pushed near a wall, or the map changed under it):
+            # plan from the nearest known-free cell instead, so the robot can back out.
+            start = nearest_traversable(layers.state == kernels.FREE, ri, rj, int(math.ceil(p.escape_radius_m / res)))
             if start is None:
                 return Plan(None, np.zeros((0, 2)), False)
             layers.traversable[start] = True
@@ -137,22 +138,33 @@ class Explorer:
             c.cost_m = float(dist[wi, wj]) * res if self._in_window(wi, wj) and reachable[wi, wj] else c.graph_cost_m
         if self.team.strategy.ranking == "minpos":
             self._minpos_ranks(candidates)
+        # Strikes only count for targets that are still targets.
+        keys = {(c.x_m, c.y_m) for c in candidates}
+        self._strikes = {k: v for k, v in self._strikes.items() if k in keys}
 
         while candidates:
             c = self._choose(candidates)
             path = self._route(c, parent, reachable, topo_src, topo_dist, topo_parent, x_m, y_m)
             if path is not None:
+                self._strikes.pop((c.x_m, c.y_m), None)
                 self._track_progress(c, now_us)
                 if self.target is None:
                     return Plan(None, np.zeros((0, 2)), False)
                 return Plan(self.target, path, False)
-            # No way there from here, not even along the topological map: drop it for good.
-            self.waypoints.ban(c.x_m, c.y_m)
-            self.dropped_unreachable += 1
-            candidates = [k for k in candidates if not self.waypoints.is_banned(k.x_m, k.y_m)]
+            # No way there from here, not even along the topological map. A map glitch can
+            # cause that for a moment, so it takes several cycles in a row to drop it for good.
+            key = (c.x_m, c.y_m)
+            self._strikes[key] = self._strikes.get(key, 0) + 1
+            if self._strikes[key] >= self.p.unreachable_strikes:
+                self.waypoints.ban(c.x_m, c.y_m)
+                self.dropped_unreachable += 1
+            candidates = [k for k in candidates if (k.x_m, k.y_m) != key and not self.waypoints.is_banned(k.x_m, k.y_m)]
             self.target = None
         self.target = None
-        return Plan(None, np.zeros((0, 2)), True)
+        # Done only when no target is left at all; targets merely unreachable right now (still
+        # collecting strikes) keep the robot planning.
+        pending = any(v < self.p.unreachable_strikes for v in self._strikes.values())
+        return Plan(None, np.zeros((0, 2)), not pending)
 
     # --- targets (eq. 5) --------------------------------------------------------------
     def _candidates(self) -> list[_Candidate]:

@@ -22,7 +22,7 @@ class ExplorationParams:
     waypoint_cluster_radius_m: float = 3.0
     min_cluster_entropy_bit: float = 90.0
     artifact_types: int = 5                  # "five artifacts of different type"
-    candidate_spacing_m: float = 0.5         # waypoint candidates are evaluated on this sub-grid
+    candidate_spacing_m: float = 1.0         # waypoint candidates are evaluated on this sub-grid
     info_rays: int = 64                      # rays cast from a candidate to count observable cells
     # Robot body and navigation.
     robot_radius_m: float = 0.25
@@ -36,6 +36,8 @@ class ExplorationParams:
     # A waypoint that was reached or proved unreachable is dropped for good; candidates this
     # close to it are never generated again, which bounds the mission (finite area).
     ban_radius_m: float = 1.5
+    unreachable_strikes: int = 3             # planning cycles in a row without a route before a drop
+    escape_radius_m: float = 0.8             # how far to look for a traversable cell to start from
     stall_timeout_s: float = 20.0            # no progress towards the target for this long: drop it
     # Log-odds occupancy update.
     logodds_hit: float = 1.2

@@ -25,7 +25,11 @@ from hal.sim.clock import SimClock
 from hal.sim.factory import build_sim_hal
 from hal.sim.mesh import SimMeshBus
 from hal.sim.radio import SimRadioModem
+from host_tools.capture import CaptureWriter
+from host_tools.cmd_inspect import sender_stats
+from radio_sim.air_log import AirFrame
 from radio_sim.channel import Channel
+from radio_sim.virtual_modem import open_serial_radios
 from world_sim.map_spec import resolve_map, staging_poses
 from world_sim.ros_map import reachable_free
 from world_sim.world import World, WorldParams
@@ -42,6 +46,8 @@ class MissionConfig:
     radio: str = "ideal-100Bps"
     strategy: str = "greedy"
     start_xy: tuple[float, float] | None = None
+    serial_radio: bool = False          # every robot's radio through a virtual RN2483 on a pty
+    capture_path: str | None = None     # record every frame on the air (JSON Lines capture)
 
 
 @dataclass
@@ -61,6 +67,10 @@ class MissionResult:
     trajectory_sha256: str
     reachable_area_m2: float
     robot_status: list[str]
+    overlap: float
+    radio: dict
+    air_log_sha256: str
+    coverage_raw: float = math.nan   # against the raw 4-connected component, slivers included
     # For plots (not in the JSON).
     trajectories: list[np.ndarray] = field(repr=False, default_factory=list)
     world: object = field(repr=False, default=None)
@@ -79,6 +89,8 @@ class MissionResult:
             "radio": self.config.radio,
             "strategy": self.config.strategy,
             "coverage": round(self.coverage, 6),
+            "coverage_raw_component": round(self.coverage_raw, 6),
+            "overlap": round(self.overlap, 6),
             "path_length_m": [round(p, 3) for p in self.path_length_m],
             "t_total_s": round(self.t_total_s, 3),
             "t_90_s": None if self.t_90_s is None else round(self.t_90_s, 3),
@@ -89,6 +101,8 @@ class MissionResult:
             "blocked_moves": self.blocked_moves,
             "ticks": self.ticks,
             "trajectory_sha256": self.trajectory_sha256,
+            "air_log_sha256": self.air_log_sha256,
+            "radio": self.radio,
             # Wall-clock figures: the only keys that differ between identical runs.
             "wall_s": round(self.wall_s, 3),
             "sim_speedup": round(self.sim_speedup, 2),
@@ -97,6 +111,55 @@ class MissionResult:
 
 
 WALL_TIME_KEYS = ("wall_s", "sim_speedup", "ticks_per_s")
+
+
+def air_log_digest(air_frames: list[AirFrame]) -> str:
+    """SHA-256 over every transmission: when, who, what (the transmit log of DESIGN.md)."""
+    h = hashlib.sha256()
+    for a in air_frames:
+        h.update(f"{a.start_us},{a.end_us},{a.sender_id},{len(a.payload)};".encode())
+        h.update(a.payload)
+    return h.hexdigest()
+
+
+def radio_metrics(air_frames: list[AirFrame], channel: Channel, agents: list, mesh: SimMeshBus, now_us: int) -> dict:
+    """What the team put on the air and what became of it, per robot where it is per robot."""
+    n = len(agents)
+    profile = channel.profile
+    stats = sender_stats(air_frames, profile, duration_us=max(now_us, 1))
+    per = [stats.get(i) for i in range(n)]
+    fates: dict[str, int] = {}
+    for a in air_frames:
+        for r in a.receptions:
+            fates[r.fate] = fates.get(r.fate, 0) + 1
+    violations = 0
+    duty = []
+    for st in per:
+        worst = 0.0
+        if st is not None:
+            for sb, use in st.duty_cycle_max_by_sub_band.items():
+                limit = st.duty_cycle_limit_by_sub_band.get(sb)
+                worst = max(worst, use)
+                if limit is not None and use > limit + 1e-12:
+                    violations += 1
+        duty.append(round(worst, 6))
+    counters = [a.link.counters if a.link is not None else {} for a in agents]
+    return {
+        "profile": profile.name,
+        "frames_sent": [st.frames if st else 0 for st in per],
+        "bytes_sent": [st.bytes if st else 0 for st in per],
+        "bytes_per_s_mean": [round(st.bytes_per_s, 3) if st else 0.0 for st in per],
+        "bytes_per_s_peak_10s": [round(st.peak_bytes_per_s_10s, 3) if st else 0.0 for st in per],
+        "airtime_fraction": [round(st.airtime_us / max(now_us, 1), 6) if st else 0.0 for st in per],
+        "duty_cycle_worst_hour": duty,
+        "duty_cycle_violations": violations,
+        "records_sent": [c.get("sent.records", 0) for c in counters],
+        "deferred_duty_cycle": [c.get("deferred.duty_cycle", 0) for c in counters],
+        "deferred_rate_cap": [c.get("deferred.rate_cap", 0) for c in counters],
+        "dropped_queue_full": [c.get("dropped.queue_full", 0) for c in counters],
+        "receptions": dict(sorted(fates.items())),
+        "mesh_bytes_sent": [mesh.bytes_sent.get(i, 0) for i in range(n)],
+    }
 
 
 def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | None = None,
@@ -109,22 +172,54 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         start = (cfg.start_xy[0], cfg.start_xy[1], start[2])
     poses = staging_poses(occ, start, cfg.robots) if cfg.robots > 1 else [start]
     world = World(occ, poses, cfg.seed, world_params)
-    reachable = reachable_free(occ, (poses[0][0], poses[0][1]))
-    reachable_cells = int(reachable.sum())
+    # Scored against the free area a robot body can reach from the start (see reachable_free);
+    # the figure against the raw 4-connected free component is reported too.
+    reachable = reachable_free(occ, (poses[0][0], poses[0][1]), connectivity=4,
+                               robot_radius_m=world_params.robot_radius_m)
+    reachable_raw = reachable_free(occ, (poses[0][0], poses[0][1]), connectivity=4)
     profile = radio_profile(cfg.radio)
     strategy = strategy_named(cfg.strategy)
     channel = Channel(profile, cfg.seed, occupancy=occ)
+    air_frames: list[AirFrame] = []
+    channel.add_sink(air_frames.append)
+    capture = None
+    if cfg.capture_path is not None:
+        capture = CaptureWriter(cfg.capture_path, profile.name,
+                                meta={"map": label, "seed": cfg.seed, "robots": cfg.robots, "strategy": cfg.strategy})
+        channel.add_sink(capture.write)
     mesh = SimMeshBus()
     clock = SimClock(world)
-    agents = []
     for i in range(cfg.robots):
         channel.attach(i, lambda i=i: world.true_pose(i)[:2])
-        hal = build_sim_hal(world, i, radio=SimRadioModem(channel, i, clock))
+    bank = None
+    if cfg.serial_radio:
+        bank, radios = open_serial_radios(channel, profile, clock, list(range(cfg.robots)))
+    else:
+        radios = [SimRadioModem(channel, i, clock) for i in range(cfg.robots)]
+    agents = []
+    for i in range(cfg.robots):
+        hal = build_sim_hal(world, i, radio=radios[i])
         if strategy.shares_dense_map:
             hal = dataclasses.replace(hal, mesh=mesh.endpoint(i))
         agent = ExplorerAgent(hal, params, rates, strategy, profile)
         agent.setup()
         agents.append(agent)
+    try:
+        result = _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh,
+                       progress, profiler, rates)
+        result.coverage_raw = float((world.observed_union() & reachable_raw).sum()) / int(reachable_raw.sum())
+        return result
+    finally:
+        if bank is not None:
+            for r in radios:
+                r.close()
+            bank.close()
+        if capture is not None:
+            capture.close()
+
+
+def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh, progress, profiler, rates):
+    reachable_cells = int(reachable.sum())
 
     tick_us = rates.tick_period_us
     max_us = int(cfg.max_sim_s * 1e6)
@@ -154,7 +249,10 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
             else:
                 agent.tick()
         world.step(tick_us)
-        channel.advance_to(world.now_us)
+        if bank is not None:
+            bank.advance_to(world.now_us)   # the bank moves the channel and feeds the ptys
+        else:
+            channel.advance_to(world.now_us)
         ticks += 1
         for i in range(cfg.robots):
             x, y, yaw = world.true_pose(i)
@@ -169,7 +267,11 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     digest = hashlib.sha256()
     for t in trajectories:
         digest.update(t.tobytes())
+    own_shares = [float((world.observed(i) & reachable).sum()) / reachable_cells for i in range(cfg.robots)]
     return MissionResult(
+        overlap=sum(own_shares) - coverage,
+        radio=radio_metrics(air_frames, channel, agents, mesh, world.now_us),
+        air_log_sha256=air_log_digest(air_frames),
         config=cfg,
         map_label=label,
         coverage=coverage,

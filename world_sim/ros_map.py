@@ -83,12 +83,17 @@ def load_ros_map(yaml_path: str | os.PathLike) -> OccupancyMap:
 
 
 def reachable_free(
-    occ: OccupancyMap, start_xy: tuple[float, float], connectivity: int = 8
+    occ: OccupancyMap, start_xy: tuple[float, float], connectivity: int = 8,
+    robot_radius_m: float | None = None,
 ) -> np.ndarray:
     """Bool grid of the free component (8- or 4-connected) that contains the start point.
 
     8-connected lets a component leak through pixel-diagonal chinks in drawn walls; the
-    areas in the shared maps' README are the 4-connected ones."""
+    areas in the shared maps' README are the 4-connected ones. With robot_radius_m, the answer
+    is instead the area a robot body of that radius can sweep from the start: the connected
+    set of centre positions where the disc fits, grown back by the disc. Gaps narrower than
+    the robot cut the component there; in recorded SLAM maps that drops the fans of free beams
+    drawn through chinks in walls into closed courtyards, where no robot can go."""
     if connectivity not in (4, 8):
         raise ValueError(f"connectivity must be 4 or 8, got {connectivity!r}")
     row, col = occ.cell_of(float(start_xy[0]), float(start_xy[1]))
@@ -103,8 +108,20 @@ def reachable_free(
             f"start ({start_xy[0]:.3f}, {start_xy[1]:.3f}) m is in a wall cell "
             f"(row {row}, col {col}) of map '{occ.name}'"
         )
-    labels, _ = ndimage.label(occ.free, structure=_EIGHT_CONNECTED if connectivity == 8 else None)
-    return labels == labels[row, col]
+    structure = _EIGHT_CONNECTED if connectivity == 8 else None
+    if robot_radius_m is None:
+        labels, _ = ndimage.label(occ.free, structure=structure)
+        return labels == labels[row, col]
+    r = max(1, int(np.ceil(robot_radius_m / occ.resolution_m)))
+    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+    disc = (xx * xx + yy * yy) <= r * r
+    centres = ndimage.binary_erosion(occ.free, structure=disc, border_value=0)
+    if not centres[row, col]:
+        raise ValueError(
+            f"start ({start_xy[0]:.3f}, {start_xy[1]:.3f}) m of map '{occ.name}' has no room "
+            f"for a robot of radius {robot_radius_m} m")
+    labels, _ = ndimage.label(centres, structure=structure)
+    return ndimage.binary_dilation(labels == labels[row, col], structure=disc) & occ.free
 
 
 def reachable_area_m2(
