@@ -6,6 +6,8 @@ import json
 import sys
 from pathlib import Path
 
+from firmware.team import STRATEGIES
+from hal.lora import PROFILES
 from host_tools.mission import MissionConfig, run_mission
 from host_tools.progress import progress_bar
 
@@ -18,7 +20,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robots", type=int, default=1, help="team size (default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="mission seed: same seed, same result (default %(default)s)")
     p.add_argument("--max-sim-s", type=float, default=7200.0, help="simulated time limit in seconds (default %(default)s)")
-    p.add_argument("--radio", default="ideal-100Bps", help="radio profile (default %(default)s)")
+    p.add_argument("--radio", default="ideal-100Bps", choices=sorted(PROFILES), help="radio profile (default %(default)s)")
+    p.add_argument("--strategy", default="greedy", choices=list(STRATEGIES),
+                   help="coordination strategy (default %(default)s)")
+    p.add_argument("--serial-radio", action="store_true",
+                   help="drive every robot's radio through a virtual RN2483 modem on a pseudo-terminal")
+    p.add_argument("--capture", type=Path, default=None, metavar="FILE",
+                   help="record every frame on the air (for lorascout inspect)")
     p.add_argument("--start", type=_xy, default=None, metavar="X,Y", help="start position in metres (default: the map's)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     p.add_argument("--out", type=Path, default=None, metavar="DIR", help="write mission.png and mission.json here")
@@ -38,7 +46,9 @@ def main(args: argparse.Namespace) -> int:
         print("lorascout run: --robots must be at least 1", file=sys.stderr)
         return 2
     cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
-                        max_sim_s=args.max_sim_s, radio=args.radio, start_xy=args.start)
+                        max_sim_s=args.max_sim_s, radio=args.radio, start_xy=args.start,
+                        strategy=args.strategy, serial_radio=args.serial_radio,
+                        capture_path=None if args.capture is None else str(args.capture))
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
     state = {"last": 0.0}
 
@@ -75,12 +85,16 @@ def format_summary(r: dict) -> str:
     paths = ", ".join(f"{p:.1f}" for p in r["path_length_m"])
     lines = [
         f"map            {r['map']}   (reachable free area {r['reachable_area_m2']:.0f} m²)",
-        f"robots         {r['robots']}   seed {r['seed']}   radio {r['radio']}",
+        f"robots         {r['robots']}   seed {r['seed']}   strategy {r['strategy']}   radio {r['radio']}",
         f"coverage       {r['coverage'] * 100:.2f} % of the reachable free area",
         f"path length    {paths} m",
         f"T_total        {r['t_total_s']:.1f} s simulated",
         f"T_90           {t90}",
         f"ended          {r['termination']}   (robots: {', '.join(r['robot_status'])})",
+        f"overlap        {r['overlap']:.3f}",
+        f"radio          {', '.join(f'{b:.1f}' for b in r['radio_stats']['bytes_per_s_mean'])} B/s per robot (mean), "
+        f"airtime {', '.join(f'{a * 100:.2f}' for a in r['radio_stats']['airtime_fraction'])} %, "
+        f"duty-cycle violations {r['radio_stats']['duty_cycle_violations']}",
         f"in a wall      {r['robots_in_wall']} robot-ticks",
         f"speed          {r['sim_speedup']:.1f}x real time, {r['ticks_per_s']:.0f} ticks/s, {r['wall_s']:.1f} s wall",
     ]

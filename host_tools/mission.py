@@ -102,7 +102,7 @@ class MissionResult:
             "ticks": self.ticks,
             "trajectory_sha256": self.trajectory_sha256,
             "air_log_sha256": self.air_log_sha256,
-            "radio": self.radio,
+            "radio_stats": self.radio,
             # Wall-clock figures: the only keys that differ between identical runs.
             "wall_s": round(self.wall_s, 3),
             "sim_speedup": round(self.sim_speedup, 2),
