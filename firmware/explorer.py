@@ -180,12 +180,15 @@ class Explorer:
 
     def _drop_waypoints_seen_by_others(self, state: np.ndarray) -> None:
         """Bayer & Faigl: a waypoint is removed when another robot reported its presence
-        closer than d_cam. We also ask for a clear line of sight in our own local map, so a
-        robot on the far side of a wall does not cancel a room nobody has seen."""
+        closer than d_cam. Two refinements keep this from cancelling what nobody has seen:
+        only places the other robot visited and this one did not count (robots leaving a
+        common staging area have all been there), and the line of sight between the place and
+        the waypoint must be clear in our own local map (not through a wall)."""
         if not len(self.topo) or not self.waypoints.items:
             return
         xy = self.topo.positions()
-        others = np.nonzero(self.topo.visited_by_others(self.team.robot_id))[0]
+        only_others = self.topo.visited_by_others(self.team.robot_id) & ~self.topo.visited_by(self.team.robot_id)
+        others = np.nonzero(only_others)[0]
         if len(others) == 0:
             return
         keep = []

@@ -7,7 +7,6 @@ cell (row0 + i, col0 + j), whose centre is ((col0 + j + 0.5) * res, (row0 + i + 
 """
 from __future__ import annotations
 
-import heapq
 import math
 
 import numpy as np
@@ -63,6 +62,8 @@ def polar_fill(logodds, row0, col0, res, px, py, bin0_rad, bin_rad, ranges_m, ra
     for i in range(max(i_lo, 0), min(i_hi, rows)):
         cy = (row0 + i + 0.5) * res - py
         for j in range(max(j_lo, 0), min(j_hi, cols)):
+            if logodds[i, j] <= lmin:
+                continue  # already as free as it gets: a miss cannot change it (hits come below)
             cx = (col0 + j + 0.5) * res - px
             d2 = cx * cx + cy * cy
             if d2 >= reach2:
@@ -143,45 +144,136 @@ def chamfer_distance(blocked):
 
 
 @njit(cache=True)
+def chamfer_distances(state):
+    """(distance to the nearest OCCUPIED cell, distance to the nearest cell that is not
+    FREE), in cells, in one pair of passes; each as chamfer_distance would give it."""
+    rows, cols = state.shape
+    inf = np.inf
+    d_occ = np.empty((rows, cols), np.float32)
+    d_blk = np.empty((rows, cols), np.float32)
+    for i in range(rows):
+        for j in range(cols):
+            v = state[i, j]
+            d_occ[i, j] = 0.0 if v == OCCUPIED else inf
+            d_blk[i, j] = 0.0 if v != FREE else inf
+    s2 = np.float32(math.sqrt(2.0))
+    for d in (d_occ, d_blk):
+        for i in range(rows):
+            for j in range(cols):
+                v = d[i, j]
+                if i > 0:
+                    v = min(v, d[i - 1, j] + 1.0)
+                    if j > 0:
+                        v = min(v, d[i - 1, j - 1] + s2)
+                    if j < cols - 1:
+                        v = min(v, d[i - 1, j + 1] + s2)
+                if j > 0:
+                    v = min(v, d[i, j - 1] + 1.0)
+                d[i, j] = v
+        for i in range(rows - 1, -1, -1):
+            for j in range(cols - 1, -1, -1):
+                v = d[i, j]
+                if i < rows - 1:
+                    v = min(v, d[i + 1, j] + 1.0)
+                    if j > 0:
+                        v = min(v, d[i + 1, j - 1] + s2)
+                    if j < cols - 1:
+                        v = min(v, d[i + 1, j + 1] + s2)
+                if j < cols - 1:
+                    v = min(v, d[i, j + 1] + 1.0)
+                d[i, j] = v
+    return d_occ, d_blk
+
+
+@njit(cache=True)
+def _heap_push(keys, vals, size, key, val):
+    """Binary min-heap on parallel arrays, ordered by (key, val) so ties are reproducible."""
+    i = size
+    keys[i] = key
+    vals[i] = val
+    while i > 0:
+        parent = (i - 1) >> 1
+        if keys[parent] < key or (keys[parent] == key and vals[parent] <= val):
+            break
+        keys[i] = keys[parent]
+        vals[i] = vals[parent]
+        i = parent
+    keys[i] = key
+    vals[i] = val
+    return size + 1
+
+
+@njit(cache=True)
+def _heap_pop(keys, vals, size):
+    """Remove the top; returns the new size (the caller read keys[0], vals[0] first)."""
+    size -= 1
+    key = keys[size]
+    val = vals[size]
+    i = 0
+    while True:
+        child = 2 * i + 1
+        if child >= size:
+            break
+        right = child + 1
+        if right < size and (keys[right] < keys[child] or (keys[right] == keys[child] and vals[right] < vals[child])):
+            child = right
+        if key < keys[child] or (key == keys[child] and val <= vals[child]):
+            break
+        keys[i] = keys[child]
+        vals[i] = vals[child]
+        i = child
+    keys[i] = key
+    vals[i] = val
+    return size
+
+
+@njit(cache=True)
 def dijkstra_grid(traversable, cell_cost, start_i, start_j):
     """Shortest paths over 8-connected traversable cells from one start cell.
 
     A step costs its length in cells times the mean of the two cells' cost factors, so a
     path through narrow places pays for hugging walls (Bayer & Faigl IV-A). Diagonal steps
     may not cut a blocked corner. Returns (cost in cells, inf where unreachable; parent as
-    flat index, -1 for the start and unreached cells). Ties resolve by flat index, so the
-    result is a pure function of the inputs.
+    flat index, -1 for the start and unreached cells). The heap orders ties by flat index,
+    so the result is a pure function of the inputs.
     """
     rows, cols = traversable.shape
     dist = np.full((rows, cols), np.inf)
     parent = np.full((rows, cols), -1, np.int64)
     if not traversable[start_i, start_j]:
         return dist, parent
+    # Each cell is pushed at most once per improvement; 8 neighbours bound the pushes.
+    capacity = 8 * int(traversable.sum()) + 1
+    keys = np.empty(capacity, np.float64)
+    vals = np.empty(capacity, np.int64)
+    size = _heap_push(keys, vals, 0, 0.0, start_i * cols + start_j)
     dist[start_i, start_j] = 0.0
-    heap = [(0.0, start_i * cols + start_j)]
     s2 = math.sqrt(2.0)
-    di = (-1, -1, -1, 0, 0, 1, 1, 1)
-    dj = (-1, 0, 1, -1, 1, -1, 0, 1)
-    while len(heap) > 0:
-        dcur, flat = heapq.heappop(heap)
+    while size > 0:
+        dcur = keys[0]
+        flat = vals[0]
+        size = _heap_pop(keys, vals, size)
         i = flat // cols
         j = flat - i * cols
         if dcur > dist[i, j]:
             continue
-        for k in range(8):
-            ni = i + di[k]
-            nj = j + dj[k]
-            if ni < 0 or nj < 0 or ni >= rows or nj >= cols or not traversable[ni, nj]:
-                continue
-            diagonal = di[k] != 0 and dj[k] != 0
-            if diagonal and not (traversable[i, nj] and traversable[ni, j]):
-                continue
-            step = s2 if diagonal else 1.0
-            nd = dcur + step * 0.5 * (cell_cost[i, j] + cell_cost[ni, nj])
-            if nd < dist[ni, nj]:
-                dist[ni, nj] = nd
-                parent[ni, nj] = flat
-                heapq.heappush(heap, (nd, ni * cols + nj))
+        for di in range(-1, 2):
+            for dj in range(-1, 2):
+                if di == 0 and dj == 0:
+                    continue
+                ni = i + di
+                nj = j + dj
+                if ni < 0 or nj < 0 or ni >= rows or nj >= cols or not traversable[ni, nj]:
+                    continue
+                diagonal = di != 0 and dj != 0
+                if diagonal and not (traversable[i, nj] and traversable[ni, j]):
+                    continue
+                step = s2 if diagonal else 1.0
+                nd = dcur + step * 0.5 * (cell_cost[i, j] + cell_cost[ni, nj])
+                if nd < dist[ni, nj]:
+                    dist[ni, nj] = nd
+                    parent[ni, nj] = flat
+                    size = _heap_push(keys, vals, size, nd, ni * cols + nj)
     return dist, parent
 
 

@@ -211,10 +211,21 @@ class LocalMap:
     def layers(self) -> MapLayers:
         p = self.p
         state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
-        d_occ_cells = kernels.chamfer_distance(state == kernels.OCCUPIED)
-        d_block_cells = kernels.chamfer_distance(state != kernels.FREE)
-        keep_out_cells = (p.robot_radius_m + p.safety_margin_m) / p.resolution_m
-        traversable = (state == kernels.FREE) & (d_occ_cells >= keep_out_cells)
-        near = np.clip((p.clearance_cost_m - d_block_cells * p.resolution_m) / p.clearance_cost_m, 0.0, 1.0)
-        cell_cost = (1.0 + p.clearance_cost_weight * near).astype(np.float64)
+        traversable = np.zeros(state.shape, bool)
+        cell_cost = np.ones(state.shape, np.float64)
+        # Only known cells can be traversable, and distances matter only up to the clearance
+        # cost's reach: work on the known cells' bounding box, padded by that reach (exact,
+        # since unknown cells outside it count as blocked anyway).
+        known_rows = np.nonzero((state != kernels.UNKNOWN).any(axis=1))[0]
+        if len(known_rows):
+            known_cols = np.nonzero((state != kernels.UNKNOWN).any(axis=0))[0]
+            pad = int(np.ceil(max(p.clearance_cost_m, p.robot_radius_m + p.safety_margin_m) / p.resolution_m)) + 1
+            i0, i1 = max(known_rows[0] - pad, 0), min(known_rows[-1] + pad + 1, self.n)
+            j0, j1 = max(known_cols[0] - pad, 0), min(known_cols[-1] + pad + 1, self.n)
+            crop = state[i0:i1, j0:j1]
+            d_occ_cells, d_block_cells = kernels.chamfer_distances(crop)
+            keep_out_cells = (p.robot_radius_m + p.safety_margin_m) / p.resolution_m
+            traversable[i0:i1, j0:j1] = (crop == kernels.FREE) & (d_occ_cells >= keep_out_cells)
+            near = np.clip((p.clearance_cost_m - d_block_cells * p.resolution_m) / p.clearance_cost_m, 0.0, 1.0)
+            cell_cost[i0:i1, j0:j1] = 1.0 + p.clearance_cost_weight * near
         return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable, cell_cost=cell_cost)

@@ -10,9 +10,12 @@ from math import log2
 
 @dataclass(frozen=True)
 class ExplorationParams:
-    # Local dense map (Table II: resolution 10 cm, local map size d_local 20 m).
+    # Local dense map (Table II: resolution 10 cm, local map size d_local 20 m). The paper
+    # drops points "farther than d_local from the robot", so d_local is the window's half
+    # side: with a 10 m sensor and d_cam 9.5 m, a waypoint at the edge of what the robot sees
+    # still has its whole d_cam disc inside the map (10 + 9.5 < 20).
     resolution_m: float = 0.1
-    local_map_size_m: float = 20.0          # side of the square window kept around the robot
+    d_local_m: float = 20.0
     recenter_distance_m: float = 2.0        # shift the window when the robot is this far off centre
     # Topological map (Table II).
     d_build_m: float = 1.0
@@ -57,7 +60,7 @@ class ExplorationParams:
 
     @property
     def window_cells(self) -> int:
-        return int(round(self.local_map_size_m / self.resolution_m))
+        return int(round(2 * self.d_local_m / self.resolution_m))
 
 
 @dataclass(frozen=True)

@@ -22,19 +22,17 @@ class Waypoint:
     e_bit: float
 
 
-def unknown_box_counts(state: np.ndarray, half_cells: int) -> np.ndarray:
-    """Unknown cells within the square of half-side half_cells around every cell: an upper
-    bound of what a candidate there can observe, to skip hopeless candidates cheaply."""
+def unknown_box_counts(state: np.ndarray, half_cells: int, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Unknown cells within the square of half-side half_cells around each (row, col): an
+    upper bound of what a candidate there can observe, to skip hopeless candidates cheaply."""
     unknown = (state == kernels.UNKNOWN).astype(np.int32)
     sat = np.zeros((unknown.shape[0] + 1, unknown.shape[1] + 1), np.int64)
     sat[1:, 1:] = unknown.cumsum(0).cumsum(1)
     n_r, n_c = unknown.shape
-    i = np.arange(n_r)
-    j = np.arange(n_c)
-    i0 = np.clip(i - half_cells, 0, n_r)[:, None]
-    i1 = np.clip(i + half_cells + 1, 0, n_r)[:, None]
-    j0 = np.clip(j - half_cells, 0, n_c)[None, :]
-    j1 = np.clip(j + half_cells + 1, 0, n_c)[None, :]
+    i0 = np.clip(rows - half_cells, 0, n_r)
+    i1 = np.clip(rows + half_cells + 1, 0, n_r)
+    j0 = np.clip(cols - half_cells, 0, n_c)
+    j1 = np.clip(cols + half_cells + 1, 0, n_c)
     return sat[i1, j1] - sat[i0, j1] - sat[i1, j0] + sat[i0, j0]
 
 
@@ -86,8 +84,10 @@ class WaypointSet:
         step = max(1, int(round(p.candidate_spacing_m / res)))
         sub = np.zeros_like(reachable)
         sub[step // 2::step, step // 2::step] = True
-        boxes = unknown_box_counts(state, int(max_range_cells))
-        cand = np.argwhere(reachable & sub & (boxes >= cells_needed))
+        cand = np.argwhere(reachable & sub)
+        if len(cand) == 0:
+            return
+        cand = cand[unknown_box_counts(state, int(max_range_cells), cand[:, 0], cand[:, 1]) >= cells_needed]
         if len(cand) == 0:
             return
         counts = kernels.observable_unknown(state, cand[:, 0].astype(np.int64), cand[:, 1].astype(np.int64),

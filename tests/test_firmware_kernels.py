@@ -108,3 +108,11 @@ def test_observable_unknown_counts_about_the_disc_area():
     walled = state.copy()
     walled[:, 55] = kernels.OCCUPIED  # a wall 5 cells east hides everything beyond it
     assert kernels.observable_unknown(walled, np.array([50]), np.array([50]), 256, 30.0)[0] < 0.7 * count
+
+
+@SETTINGS
+@given(grids(values=(0, 1, 2)))
+def test_paired_chamfer_distances_equal_the_single_ones(state):
+    d_occ, d_blk = kernels.chamfer_distances(state)
+    np.testing.assert_array_equal(d_occ, kernels.chamfer_distance(state == kernels.OCCUPIED))
+    np.testing.assert_array_equal(d_blk, kernels.chamfer_distance(state != kernels.FREE))
