@@ -11,6 +11,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("host_tools.cmd_bench", "measure firmware tick time, simulation speed and memory"),
     "modem": ("host_tools.cmd_modem", "serve virtual RN2483 modems on pseudo-terminals"),
     "inspect": ("host_tools.cmd_inspect", "decode radio frames from a serial port or a capture"),
+    "sweep": ("host_tools.cmd_sweep", "run maps x strategies x seeds and tabulate p_max and bandwidth"),
 }
 
 

@@ -56,3 +56,23 @@ def plot_mission(result, path: Path) -> None:
     ax.legend(loc="upper right", fontsize=8)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_sweep_paths(map_spec: str, trial: dict, path: Path) -> None:
+    """Every robot's path in one trial of a sweep (Bayer & Faigl Figs. 8 and 9)."""
+    from world_sim.map_spec import resolve_map
+
+    occ, _, label = resolve_map(map_spec)
+    fig, ax = plt.subplots(figsize=(7, 7), constrained_layout=True)
+    _background(ax, occ)
+    for i, xy in enumerate(trial["paths_xy"]):
+        xy = np.asarray(xy).reshape(-1, 2)
+        c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
+        ax.plot(xy[:, 0], xy[:, 1], color=c, lw=1.0, label=f"robot {i}: {trial['path_length_m'][i]:.0f} m")
+        if len(xy):
+            ax.plot(xy[0, 0], xy[0, 1], "o", color=c, ms=4)
+    ax.set_title(f"{label}, {trial['strategy']}, seed {trial['seed']}: longest path "
+                 f"{max(trial['path_length_m']):.0f} m, coverage {trial['coverage'] * 100:.1f} %", fontsize=9)
+    ax.legend(loc="upper right", fontsize=7)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

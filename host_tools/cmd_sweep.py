@@ -1,0 +1,52 @@
+"""`lorascout sweep`: the grid of maps x strategies x seeds, in parallel, reduced to tables
+(CSV, JSON, Markdown) and path figures (PNG)."""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from firmware.team import STRATEGIES
+from hal.lora import PROFILES
+from host_tools.progress import progress_bar
+from host_tools.sweep import SweepSpec, markdown, run_local, run_ray, save
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--maps", nargs="+", required=True, help="map specs (PATH.yaml, cave:SEED, tunnel:SEED)")
+    p.add_argument("--strategies", nargs="+", default=list(STRATEGIES), choices=list(STRATEGIES))
+    p.add_argument("--robots", type=int, default=5)
+    p.add_argument("--seeds", type=int, default=10, help="trials per map and strategy (seeds 0..N-1)")
+    p.add_argument("--first-seed", type=int, default=0)
+    p.add_argument("--radio", default="ideal-100Bps", choices=sorted(PROFILES))
+    p.add_argument("--max-sim-s", type=float, default=7200.0)
+    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="local worker processes (default: cores)")
+    p.add_argument("--ray", default=None, metavar="ADDRESS",
+                   help="run on a Ray cluster instead ('local' starts one here)")
+    p.add_argument("--out", type=Path, default=Path("out/sweep"), help="where tables and figures go")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.robots < 1 or args.seeds < 1:
+        print("lorascout sweep: --robots and --seeds must be at least 1", file=sys.stderr)
+        return 2
+    spec = SweepSpec(tuple(args.maps), tuple(args.strategies), args.robots, args.seeds, args.radio,
+                     args.max_sim_s, args.first_seed)
+    trials = spec.trials()
+    bar = progress_bar(len(trials), "sweep", "trial", args.quiet)
+    try:
+        if args.ray is not None:
+            results = run_ray(trials, None if args.ray == "local" else args.ray, lambda _r: bar.update(1))
+        else:
+            results = run_local(trials, args.jobs, lambda _r: bar.update(1))
+    except (ValueError, KeyError, OSError, RuntimeError) as exc:
+        bar.close()
+        print(f"lorascout sweep: {exc}", file=sys.stderr)
+        return 2
+    bar.close()
+    t = save(args.out, spec, results)
+    print(markdown(t))
+    print(f"wrote {args.out}/tables.md, tables.json, trials.csv, trials.jsonl and paths_*.png")
+    return 0

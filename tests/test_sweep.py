@@ -1,0 +1,50 @@
+"""Trial grids: p_max as Bayer & Faigl define it, tables and figures from a small sweep on
+local worker processes, and the same sweep on a local Ray instance when ray is installed."""
+import json
+
+import pytest
+
+from host_tools.sweep import SweepSpec, markdown, p_max, run_local, save
+
+SPEC = SweepSpec(maps=("cave:4:40x40",), strategies=("minpos", "independent"), robots=2, seeds=2,
+                 radio="ideal-100Bps", max_sim_s=40.0)
+
+
+def test_p_max_is_the_median_of_the_longest_paths():
+    trials = [{"path_length_m": [1.0, 5.0]}, {"path_length_m": [7.0, 2.0]}, {"path_length_m": [3.0, 4.0]}]
+    assert p_max(trials) == 5.0
+
+
+def test_local_sweep_writes_tables_and_figures(tmp_path):
+    done = []
+    results = run_local(SPEC.trials(), jobs=2, on_done=done.append)
+    assert len(results) == len(done) == 4
+    t = save(tmp_path, SPEC, results)
+    row = t["table3_p_max"][0]
+    for s in SPEC.strategies:
+        longest = sorted(max(r["path_length_m"]) for r in results if r["strategy"] == s)
+        assert row[s]["p_max_m"] == round((longest[0] + longest[1]) / 2, 1)
+    comm = {r["strategy"]: r for r in t["table4_communication"]}
+    assert comm["minpos"]["packet_bytes"] == 12 and comm["minpos"]["radio_Bps_per_robot_mean"] > 0
+    assert comm["independent"]["radio_Bps_per_robot_mean"] == 0
+    assert "| cave:4:40x40 |" in markdown(t)
+    assert json.loads((tmp_path / "tables.json").read_text())["spec"]["seeds"] == 2
+    assert len((tmp_path / "trials.csv").read_text().splitlines()) == 5
+    for s in SPEC.strategies:
+        assert (tmp_path / f"paths_cave_4_40x40_{s}.png").read_bytes()[:4] == b"\x89PNG"
+    # Worker processes give the missions the same results as running them here.
+    again = run_local(SPEC.trials()[:1], jobs=1, on_done=lambda r: None)[0]
+    first = next(r for r in results if r["seed"] == 0 and r["strategy"] == "minpos")
+    assert again["trajectory_sha256"] == first["trajectory_sha256"]
+
+
+def test_ray_sweep_on_a_local_instance(tmp_path):
+    ray = pytest.importorskip("ray")
+    from host_tools.sweep import run_ray
+
+    try:
+        results = run_ray(SPEC.trials()[:2], None, lambda r: None)
+    finally:
+        ray.shutdown()
+    local = run_local(SPEC.trials()[:2], jobs=1, on_done=lambda r: None)
+    assert [r["trajectory_sha256"] for r in results] == [r["trajectory_sha256"] for r in local]
