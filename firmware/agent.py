@@ -194,8 +194,8 @@ class ExplorerAgent:
         last = self._last_vertex_xy
         if last is not None and math.hypot(x_m - last[0], y_m - last[1]) < self.p.d_build_m:
             return
-        if self._last_scan_binned is None:
-            return
+        if self._last_scan_binned is None or self._last_plan_us < 0:
+            return  # the record carries the information here, known only after a first plan
         kx, ky, ranges, range_max = self._last_scan_binned
         self.keyframes.add(kx, ky, ranges, range_max)
         if self.hal.mesh is not None and self.strategy.shares_dense_map:

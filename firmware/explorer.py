@@ -117,7 +117,7 @@ class Explorer:
         reachable = np.isfinite(dist)
         self.waypoints.update(self.map, layers.sight, reachable)
         if self.team.strategy.shares_topology:
-            self._drop_waypoints_seen_by_others(layers.state)
+            self._drop_waypoints_seen_by_others(layers.state, x_m, y_m)
 
         # A target reached is done with: its surroundings are now observed (or unobservable).
         if self.target is not None and math.hypot(self.target.x_m - x_m, self.target.y_m - y_m) < p.waypoint_reached_m:
@@ -178,12 +178,14 @@ class Explorer:
             out.extend(_Candidate(float(xy[k, 0]), float(xy[k, 1]), 0.0, True) for k in np.nonzero(open_)[0])
         return out
 
-    def _drop_waypoints_seen_by_others(self, state: np.ndarray) -> None:
+    def _drop_waypoints_seen_by_others(self, state: np.ndarray, x_m: float, y_m: float) -> None:
         """Bayer & Faigl: a waypoint is removed when another robot reported its presence
-        closer than d_cam. Two refinements keep this from cancelling what nobody has seen:
-        only places the other robot visited and this one did not count (robots leaving a
-        common staging area have all been there), and the line of sight between the place and
-        the waypoint must be clear in our own local map (not through a wall)."""
+        closer than d_cam. Three refinements keep this from cancelling what nobody will see:
+        only places the other robot visited and this one did not count; only waypoints this
+        robot is not itself about to observe (farther than d_cam from it: robots leaving a
+        common staging area would otherwise cancel each other's waypoints, and MinPos is
+        there to split those); and, where our local map covers both, a clear line of sight
+        between the place and the waypoint."""
         if not len(self.topo) or not self.waypoints.items:
             return
         xy = self.topo.positions()
@@ -193,16 +195,20 @@ class Explorer:
             return
         keep = []
         for w in self.waypoints.items:
+            if math.hypot(x_m - w.x_m, y_m - w.y_m) <= self.p.d_cam_m:
+                keep.append(w)
+                continue
             d = np.hypot(xy[others, 0] - w.x_m, xy[others, 1] - w.y_m)
             near = others[d < self.p.d_cam_m]
             wi, wj = self.map.cell_of(w.x_m, w.y_m)
             seen = False
-            if self._in_window(wi, wj):
-                for v in near:
-                    vi, vj = self.map.cell_of(xy[v, 0], xy[v, 1])
-                    if self._in_window(vi, vj) and line_of_sight(state, wi, wj, vi, vj):
-                        seen = True
-                        break
+            for v in near:
+                vi, vj = self.map.cell_of(xy[v, 0], xy[v, 1])
+                # Where the local map holds both ends, a wall between them keeps the waypoint;
+                # beyond it there is nothing to check against, and the report stands.
+                if not (self._in_window(wi, wj) and self._in_window(vi, vj)) or line_of_sight(state, wi, wj, vi, vj):
+                    seen = True
+                    break
             if seen:
                 self.dropped_by_presence += 1
             else:
