@@ -197,7 +197,10 @@ class ExplorerAgent:
         if self._last_scan_binned is None or self._last_plan_us < 0:
             return  # the record carries the information here, known only after a first plan
         kx, ky, ranges, range_max = self._last_scan_binned
-        self.keyframes.add(kx, ky, ranges, range_max)
+        # Places the robot passes again keep their first keyframe: keyframes then grow with
+        # the area explored, not with the distance driven, and so does restoring the window.
+        if not self.keyframes.has_within(kx, ky, self.p.keyframe_spacing_m):
+            self.keyframes.add(kx, ky, ranges, range_max)
         if self.hal.mesh is not None and self.strategy.shares_dense_map:
             self.hal.mesh.broadcast(encode_keyframe(self.hal.robot_id, kx, ky, ranges, range_max))
         _, _, e = self._vertex_information((x_m, y_m))

@@ -41,6 +41,10 @@ class KeyframeStore:
         self._range_max_m[k] = range_max_m
         self.count += 1
 
+    def has_within(self, x_m: float, y_m: float, radius_m: float) -> bool:
+        xy = self._xy_m[: self.count]
+        return bool((((xy[:, 0] - x_m) ** 2 + (xy[:, 1] - y_m) ** 2) < radius_m * radius_m).any())
+
     def near(self, x_lo: float, x_hi: float, y_lo: float, y_hi: float) -> np.ndarray:
         """Indices of keyframes whose range disc may touch the rectangle."""
         xy = self._xy_m[: self.count]

@@ -52,6 +52,7 @@ class ExplorationParams:
     # Keyframes: every topological vertex keeps its scan binned to this many bearings, so a
     # place that left the local window is restored when the robot comes back.
     keyframe_bins: int = 360
+    keyframe_spacing_m: float = 0.7          # no new keyframe this close to a stored one
 
     @property
     def entropy_per_cell_bit(self) -> float:
