@@ -53,6 +53,9 @@ class ExplorerAgent:
         self._last_scan_binned: tuple[float, float, np.ndarray, float] | None = None
         self._last_vertex_xy: tuple[float, float] | None = None
         self._last_plan_us = -10**12
+        self._last_cmd_v = 0.0
+        self._stuck_ticks = 0
+        self.bumps = 0
         self.link = (LinkLayer(hal.robot_id, radio_profile)
                      if strategy.shares_topology and radio_profile is not None else None)
         if strategy.shares_dense_map and hal.mesh is None:
@@ -140,8 +143,31 @@ class ExplorerAgent:
             self._task_planning(now_us)
             if self.done:
                 return
+        if self._stuck(pose):
+            # Driving but not moving: something the LiDAR map let through (a gap narrower than
+            # it looks at 10 cm cells) is in the way. Mark it like a bumper would, and replan.
+            self.local_map.mark_obstacle_ahead(pose.x_m, pose.y_m, pose.yaw_rad, self.p.robot_radius_m + self.p.resolution_m)
+            self.bumps += 1
+            self.follower.clear()
+            self._task_planning(now_us)
+            if self.done:
+                return
         v, omega = self.follower.command(pose.x_m, pose.y_m, pose.yaw_rad)
+        self._last_cmd_v = v
         self.hal.drive.command(v, omega)
+
+    def _stuck(self, pose) -> bool:
+        """Commanded forward for stuck_after_s but the wheels report no motion."""
+        if self.p.stuck_after_s <= 0:
+            return False
+        if self._last_cmd_v > 0.1 and abs(pose.v_mps) < 0.02:
+            self._stuck_ticks += 1
+        else:
+            self._stuck_ticks = 0
+        if self._stuck_ticks >= self.p.stuck_after_s * self.rates.control_hz:
+            self._stuck_ticks = 0
+            return True
+        return False
 
     def _task_planning(self, now_us: int) -> None:
         if self._last_scan_binned is None or self.done:

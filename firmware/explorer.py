@@ -93,6 +93,8 @@ class Explorer:
         self.dropped_by_presence = 0
         self.reached = 0
         self._strikes: dict[tuple[float, float], int] = {}
+        # Edges of the shared map that this robot's own map shows crossing a wall.
+        self.blocked_edges: set[tuple[tuple[int, int], tuple[int, int]]] = set()
 
     def _path_xy(self, cells: list[tuple[int, int]]) -> np.ndarray:
         return np.array([self.map.center_of(i, j) for i, j in cells], np.float64).reshape(-1, 2)
@@ -125,7 +127,7 @@ class Explorer:
             self.reached += 1
             self.target = None
 
-        topo_src, topo_dist, topo_parent = self.topo.costs_from(x_m, y_m)
+        topo_src, topo_dist, topo_parent = self.topo.costs_from(x_m, y_m, frozenset(self.blocked_edges))
         to_src_m = 0.0
         if topo_src is not None:
             sx, sy = self.topo.positions()[topo_src]
@@ -223,7 +225,7 @@ class Explorer:
         for rid, (ox, oy) in sorted(self.team.positions.items()):
             if rid == self.team.robot_id:
                 continue
-            src, dist, _ = self.topo.costs_from(ox, oy)
+            src, dist, _ = self.topo.costs_from(ox, oy, frozenset(self.blocked_edges))
             if src is None:
                 continue
             sx, sy = self.topo.positions()[src]
@@ -276,14 +278,27 @@ class Explorer:
         if goal_vertex is None:
             return None
         xy = self.topo.positions()
-        for v in reversed(self.topo.path(topo_parent, goal_vertex)):
+        route = self.topo.path(topo_parent, goal_vertex)
+        best = None
+        for k, v in enumerate(route):
             vi, vj = self.map.cell_of(xy[v, 0], xy[v, 1])
             if not self._in_window(vi, vj):
                 continue
             hit = nearest_traversable(reachable, vi, vj, 3)
-            if hit is None:
-                continue
-            if math.hypot(xy[v, 0] - x_m, xy[v, 1] - y_m) < self.p.waypoint_reached_m:
-                break  # the only reachable vertex on the way is where we stand: no progress
-            return self._path_xy(extract_path(parent, hit[0], hit[1]))
-        return None
+            if hit is not None:
+                best = (v, hit)
+            elif k > 0 and best is not None and best[0] == route[k - 1] and cell_known(self.map, vi, vj):
+                # The graph steps from a place we can reach to a known place we cannot: in our
+                # map that edge crosses a wall. Never route along it again.
+                self.blocked_edges.add(self.topo.edge_key(route[k - 1], v))
+                break
+        if best is None or math.hypot(xy[best[0], 0] - x_m, xy[best[0], 1] - y_m) < self.p.waypoint_reached_m:
+            return None  # the only reachable place on the way is where we stand: no progress
+        return self._path_xy(extract_path(parent, best[1][0], best[1][1]))
+
+
+def cell_known(local_map: LocalMap, i: int, j: int) -> bool:
+    """Is the cell observed (free or wall) in the local map, rather than unknown?"""
+    p = local_map.p
+    v = local_map.logodds[i, j]
+    return bool(v > p.logodds_occupied or v < p.logodds_free)

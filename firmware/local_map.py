@@ -159,6 +159,14 @@ class LocalMap:
         self._fill(x_m, y_m, 0.0, 2 * math.pi / len(ranges_by_bearing_m),
                    np.ascontiguousarray(ranges_by_bearing_m, np.float64), range_max_m, (0, self.n, 0, self.n))
 
+    def mark_obstacle_ahead(self, x_m: float, y_m: float, yaw_rad: float, distance_m: float) -> None:
+        """Mark the cells just ahead of the robot (a short arc across its heading) occupied."""
+        p = self.p
+        for off in np.linspace(-0.6, 0.6, 7):
+            i, j = self.cell_of(x_m + distance_m * math.cos(yaw_rad + off), y_m + distance_m * math.sin(yaw_rad + off))
+            if 0 <= i < self.n and 0 <= j < self.n:
+                self.logodds[i, j] = p.logodds_max
+
     def _fill(self, px, py, bin0, binw, ranges, range_max, region) -> None:
         p = self.p
         kernels.polar_fill(self.logodds, self.row0, self.col0, p.resolution_m, px, py, bin0, binw,

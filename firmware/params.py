@@ -33,7 +33,7 @@ class ExplorationParams:
     clearance_cost_m: float = 1.0            # below this distance to walls/unknown, paths pay extra
     clearance_cost_weight: float = 2.0
     waypoint_reached_m: float = 0.5
-    lookahead_m: float = 0.6
+    lookahead_m: float = 0.35
     rotate_in_place_rad: float = 0.8
     heading_gain: float = 2.0
     # A waypoint that was reached or proved unreachable is dropped for good; candidates this
@@ -41,6 +41,7 @@ class ExplorationParams:
     ban_radius_m: float = 1.5
     unreachable_strikes: int = 3             # planning cycles in a row without a route before a drop
     escape_radius_m: float = 0.8             # how far to look for a traversable cell to start from
+    stuck_after_s: float = 0.5               # driving without moving this long marks an obstacle (0: off)
     stall_timeout_s: float = 20.0            # no progress towards the target for this long: drop it
     # Log-odds occupancy update.
     logodds_hit: float = 1.2

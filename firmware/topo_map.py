@@ -223,14 +223,37 @@ class TopoMap:
             return None
         return int(np.argmin((xy[:, 0] - x_m) ** 2 + (xy[:, 1] - y_m) ** 2))
 
-    def costs_from(self, x_m: float, y_m: float) -> tuple[int | None, np.ndarray, np.ndarray]:
+    def costs_from(self, x_m: float, y_m: float, blocked: frozenset[tuple[tuple[int, int], tuple[int, int]]] = frozenset()
+                   ) -> tuple[int | None, np.ndarray, np.ndarray]:
         """(source vertex, graph distance in m to every vertex (inf if unreached), parents)
-        from the vertex nearest to (x, y)."""
+        from the vertex nearest to (x, y). `blocked` edges (pairs of vertex positions in cm,
+        see edge_key) are left out: a robot's own finding that an edge crosses a wall."""
         src = self.nearest(x_m, y_m)
         if src is None:
             return None, np.zeros(0), np.zeros(0, np.int64)
-        dist, parent = dijkstra_csr(*self._csr, src)
+        indptr, indices, weights = self._csr
+        if blocked:
+            weights = weights.copy()
+            index = self._index_by_position()
+            for a, b in blocked:
+                u, v = index.get(a), index.get(b)
+                if u is None or v is None:
+                    continue
+                for x, y in ((u, v), (v, u)):
+                    row = indices[indptr[x]:indptr[x + 1]]
+                    weights[indptr[x] + np.nonzero(row == y)[0]] = np.inf
+        dist, parent = dijkstra_csr(indptr, indices, weights, src)
         return src, dist, parent
+
+    def edge_key(self, u: int, v: int) -> tuple[tuple[int, int], tuple[int, int]]:
+        """A name for the edge between vertices u and v that survives rebuilding the map."""
+        xy = np.round(self.positions() * 100).astype(np.int64)
+        a, b = (int(xy[u, 0]), int(xy[u, 1])), (int(xy[v, 0]), int(xy[v, 1]))
+        return (a, b) if a <= b else (b, a)
+
+    def _index_by_position(self) -> dict[tuple[int, int], int]:
+        xy = np.round(self.positions() * 100).astype(np.int64)
+        return {(int(x), int(y)): k for k, (x, y) in enumerate(xy)}
 
     def cost_to(self, dist: np.ndarray, x_m: float, y_m: float) -> tuple[float, int | None]:
         """Cost to a point off the graph: graph distance to the reached vertex closest to the
