@@ -88,6 +88,9 @@ class Explorer:
         self.target: Target | None = None
         self._best_progress_m = math.inf
         self._progress_stamp_us = 0
+        self._time_on_us: dict[tuple[float, float], int] = {}
+        self._budget_us: dict[tuple[float, float], int] = {}
+        self._last_track_us = 0
         self.dropped_unreachable = 0
         self.dropped_stalled = 0
         self.dropped_by_presence = 0
@@ -248,17 +251,27 @@ class Explorer:
         return best
 
     def _track_progress(self, c: _Candidate, now_us: int) -> None:
-        same = self.target is not None and (self.target.x_m, self.target.y_m) == (c.x_m, c.y_m)
+        key = (c.x_m, c.y_m)
+        # Time spent heading for each target accumulates across switches, so two targets
+        # taking turns cannot keep a robot busy for ever.
+        if self.target is not None:
+            prev = (self.target.x_m, self.target.y_m)
+            self._time_on_us[prev] = self._time_on_us.get(prev, 0) + now_us - self._last_track_us
+        self._last_track_us = now_us
+        same = self.target is not None and (self.target.x_m, self.target.y_m) == key
         if not same:
             self.target = Target(c.x_m, c.y_m, c.cost_m, c.from_team)
             self._best_progress_m = c.cost_m
             self._progress_stamp_us = now_us
+            # A budget: the stall timeout plus the first cost at a crawl (0.25 m/s).
+            self._budget_us.setdefault(key, int((self.p.stall_timeout_s + 4.0 * c.cost_m) * 1e6))
             return
         self.target.cost_m = c.cost_m
         if c.cost_m < self._best_progress_m - 0.3:
             self._best_progress_m = c.cost_m
             self._progress_stamp_us = now_us
-        elif now_us - self._progress_stamp_us > self.p.stall_timeout_s * 1e6:
+        if now_us - self._progress_stamp_us > self.p.stall_timeout_s * 1e6 \
+                or self._time_on_us.get(key, 0) > self._budget_us[key]:
             # Paths keep promising but the robot gets no closer: give up on this target.
             self.waypoints.ban(c.x_m, c.y_m)
             self.dropped_stalled += 1

@@ -125,12 +125,14 @@ def close_wall_gaps(state: np.ndarray) -> np.ndarray:
 
 
 class LocalMap:
+    MAX_BUMP_CELLS = 7 * 64
     def __init__(self, params: ExplorationParams, x_m: float, y_m: float, keyframes: KeyframeStore) -> None:
         self.p = params
         self.n = params.window_cells
         self.logodds = np.zeros((self.n, self.n), np.float32)
         self.keyframes = keyframes
         self.row0, self.col0 = self._anchor_for(x_m, y_m)
+        self.bumps: list[tuple[float, float]] = []   # obstacles felt, not seen (mark_obstacle_ahead)
 
     # --- geometry -------------------------------------------------------------------
     def _anchor_for(self, x_m: float, y_m: float) -> tuple[int, int]:
@@ -160,12 +162,12 @@ class LocalMap:
                    np.ascontiguousarray(ranges_by_bearing_m, np.float64), range_max_m, (0, self.n, 0, self.n))
 
     def mark_obstacle_ahead(self, x_m: float, y_m: float, yaw_rad: float, distance_m: float) -> None:
-        """Mark the cells just ahead of the robot (a short arc across its heading) occupied."""
-        p = self.p
+        """Remember an obstacle just ahead of the robot (a short arc across its heading) that
+        the LiDAR does not show. Kept apart from the log-odds, so later scans that see free
+        space there cannot erase it and send the robot into the same spot again."""
         for off in np.linspace(-0.6, 0.6, 7):
-            i, j = self.cell_of(x_m + distance_m * math.cos(yaw_rad + off), y_m + distance_m * math.sin(yaw_rad + off))
-            if 0 <= i < self.n and 0 <= j < self.n:
-                self.logodds[i, j] = p.logodds_max
+            self.bumps.append((x_m + distance_m * math.cos(yaw_rad + off), y_m + distance_m * math.sin(yaw_rad + off)))
+        del self.bumps[:-self.MAX_BUMP_CELLS]  # bounded memory: the oldest are forgotten first
 
     def _fill(self, px, py, bin0, binw, ranges, range_max, region) -> None:
         p = self.p
@@ -223,6 +225,10 @@ class LocalMap:
     def layers(self) -> MapLayers:
         p = self.p
         state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
+        for bx, by in self.bumps:
+            i, j = self.cell_of(bx, by)
+            if 0 <= i < self.n and 0 <= j < self.n:
+                state[i, j] = kernels.OCCUPIED
         traversable = np.zeros(state.shape, bool)
         cell_cost = np.ones(state.shape, np.float64)
         # Only known cells can be traversable, and distances matter only up to the clearance

@@ -29,7 +29,7 @@ class ExplorationParams:
     info_rays: int = 64                      # rays cast from a candidate to count observable cells
     # Robot body and navigation.
     robot_radius_m: float = 0.25
-    safety_margin_m: float = 0.1             # traversable cells keep radius + margin from walls
+    safety_margin_m: float = 0.07            # traversable cells keep radius + margin from walls
     clearance_cost_m: float = 1.0            # below this distance to walls/unknown, paths pay extra
     clearance_cost_weight: float = 2.0
     waypoint_reached_m: float = 0.5

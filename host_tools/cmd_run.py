@@ -19,7 +19,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="PATH.yaml (ROS map_server), cave:SEED[:WxH] or tunnel:SEED[:WxH] (default %(default)s)")
     p.add_argument("--robots", type=int, default=1, help="team size (default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="mission seed: same seed, same result (default %(default)s)")
-    p.add_argument("--max-sim-s", type=float, default=7200.0, help="simulated time limit in seconds (default %(default)s)")
+    p.add_argument("--max-sim-s", type=float, default=14400.0, help="simulated time limit in seconds (default %(default)s)")
     p.add_argument("--radio", default="ideal-100Bps", choices=sorted(PROFILES), help="radio profile (default %(default)s)")
     p.add_argument("--strategy", default="greedy", choices=list(STRATEGIES),
                    help="coordination strategy (default %(default)s)")

@@ -20,7 +20,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seeds", type=int, default=10, help="trials per map and strategy (seeds 0..N-1)")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--radio", default="ideal-100Bps", choices=sorted(PROFILES))
-    p.add_argument("--max-sim-s", type=float, default=7200.0)
+    p.add_argument("--max-sim-s", type=float, default=14400.0)
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="local worker processes (default: cores)")
     p.add_argument("--ray", default=None, metavar="ADDRESS",
                    help="run on a Ray cluster instead ('local' starts one here)")

@@ -42,7 +42,7 @@ class MissionConfig:
     map_spec: str = "cave:1"
     robots: int = 1
     seed: int = 0
-    max_sim_s: float = 7200.0
+    max_sim_s: float = 14400.0
     radio: str = "ideal-100Bps"
     strategy: str = "greedy"
     start_xy: tuple[float, float] | None = None

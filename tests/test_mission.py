@@ -41,7 +41,7 @@ def test_trajectory_digest_for_a_fixed_seed_is_pinned():
     assert r.trajectory_sha256 == PINNED_TRAJECTORY_SHA256
 
 
-PINNED_TRAJECTORY_SHA256 = "59056795f5cd21dd62ae3bb26f7993af48f96469aa612a9dbd154c65ae532f5a"
+PINNED_TRAJECTORY_SHA256 = "006cdc9437a762d0760a5b19cf2e7dfe9685199461dcae95a1c14cb253873536"
 
 
 def test_serial_radio_gives_the_same_mission_as_the_in_process_radio(shared_maps):
