@@ -105,16 +105,10 @@ def classify(logodds, occupied_above, free_below):
 
 
 @njit(cache=True)
-def chamfer_distance(blocked):
-    """Distance in cells from every cell to the nearest blocked cell (8-neighbour chamfer,
-    steps 1 and sqrt 2: exact along axes and diagonals, at most 8 % long in between).
-    With no blocked cell at all every distance is +inf."""
-    rows, cols = blocked.shape
-    inf = np.inf
-    d = np.empty((rows, cols), np.float32)
-    for i in range(rows):
-        for j in range(cols):
-            d[i, j] = 0.0 if blocked[i, j] else inf
+def _chamfer_passes(d):
+    """Two raster passes of the 8-neighbour chamfer (steps 1 and sqrt 2), in place, over a
+    field that holds 0 at the sources and +inf elsewhere."""
+    rows, cols = d.shape
     s2 = np.float32(math.sqrt(2.0))
     for i in range(rows):
         for j in range(cols):
@@ -140,48 +134,36 @@ def chamfer_distance(blocked):
             if j < cols - 1:
                 v = min(v, d[i, j + 1] + 1.0)
             d[i, j] = v
+
+
+@njit(cache=True)
+def chamfer_distance(blocked):
+    """Distance in cells from every cell to the nearest blocked cell (8-neighbour chamfer,
+    steps 1 and sqrt 2: exact along axes and diagonals, at most 8 % long in between).
+    With no blocked cell at all every distance is +inf."""
+    rows, cols = blocked.shape
+    d = np.empty((rows, cols), np.float32)
+    for i in range(rows):
+        for j in range(cols):
+            d[i, j] = 0.0 if blocked[i, j] else np.inf
+    _chamfer_passes(d)
     return d
 
 
 @njit(cache=True)
 def chamfer_distances(state):
     """(distance to the nearest OCCUPIED cell, distance to the nearest cell that is not
-    FREE), in cells, in one pair of passes; each as chamfer_distance would give it."""
+    FREE), in cells; each as chamfer_distance would give it."""
     rows, cols = state.shape
-    inf = np.inf
     d_occ = np.empty((rows, cols), np.float32)
     d_blk = np.empty((rows, cols), np.float32)
     for i in range(rows):
         for j in range(cols):
             v = state[i, j]
-            d_occ[i, j] = 0.0 if v == OCCUPIED else inf
-            d_blk[i, j] = 0.0 if v != FREE else inf
-    s2 = np.float32(math.sqrt(2.0))
-    for d in (d_occ, d_blk):
-        for i in range(rows):
-            for j in range(cols):
-                v = d[i, j]
-                if i > 0:
-                    v = min(v, d[i - 1, j] + 1.0)
-                    if j > 0:
-                        v = min(v, d[i - 1, j - 1] + s2)
-                    if j < cols - 1:
-                        v = min(v, d[i - 1, j + 1] + s2)
-                if j > 0:
-                    v = min(v, d[i, j - 1] + 1.0)
-                d[i, j] = v
-        for i in range(rows - 1, -1, -1):
-            for j in range(cols - 1, -1, -1):
-                v = d[i, j]
-                if i < rows - 1:
-                    v = min(v, d[i + 1, j] + 1.0)
-                    if j > 0:
-                        v = min(v, d[i + 1, j - 1] + s2)
-                    if j < cols - 1:
-                        v = min(v, d[i + 1, j + 1] + s2)
-                if j < cols - 1:
-                    v = min(v, d[i, j + 1] + 1.0)
-                d[i, j] = v
+            d_occ[i, j] = 0.0 if v == OCCUPIED else np.inf
+            d_blk[i, j] = 0.0 if v != FREE else np.inf
+    _chamfer_passes(d_occ)
+    _chamfer_passes(d_blk)
     return d_occ, d_blk
 
 

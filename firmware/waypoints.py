@@ -109,8 +109,3 @@ class WaypointSet:
                 continue
             added.append(Waypoint(x, y, float(e_bit[k])))
         self.items.extend(added)
-
-    def total_entropy_near(self, x_m: float, y_m: float, radius_m: float) -> float:
-        r2 = radius_m * radius_m
-        return float(sum(w.e_bit for w in self.items if (w.x_m - x_m) ** 2 + (w.y_m - y_m) ** 2 <= r2))
-
