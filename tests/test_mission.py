@@ -7,6 +7,7 @@ import sys
 
 import pytest
 
+from firmware.params import ExplorationParams
 from host_tools.mission import WALL_TIME_KEYS, MissionConfig, run_mission
 
 
@@ -20,8 +21,9 @@ def test_one_robot_explores_the_depot_to_completion(shared_maps):
     assert r.coverage >= 0.99
     assert r.robots_in_wall == 0
     assert r.t_90_s is not None and r.t_90_s <= r.t_total_s
-    # The local map stayed the size it started at, whatever was explored.
-    assert r.agents[0].local_map.logodds.shape == (200, 200)
+    # The local map stayed the size it started at (2 d_local at 0.1 m), whatever was explored.
+    n = ExplorationParams().window_cells
+    assert r.agents[0].local_map.logodds.shape == (n, n) == (400, 400)
 
 
 def test_same_seed_same_mission_bit_for_bit(shared_maps):
