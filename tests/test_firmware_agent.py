@@ -1,0 +1,82 @@
+"""The firmware against a scripted HAL: it terminates in a closed room, and a robot whose
+wheels do not move marks what blocks it, drops its targets for good, and still terminates."""
+import math
+
+import numpy as np
+
+from firmware.agent import ExplorerAgent
+from hal.bundle import Hal
+from hal.samples import DriveLimits, LidarScan, OdometrySample
+
+
+class ScriptedHal:
+    """A robot standing still at the origin with a LiDAR that sees `ranges_m` every 100 ms."""
+
+    def __init__(self, ranges_m: np.ndarray):
+        self.t_us = 0
+        self.ranges_m = ranges_m.astype(np.float32)
+        self.commands = []
+        self._last_scan_us = -1
+
+    def now_us(self):
+        return self.t_us
+
+    def latest_scan(self):
+        if self.t_us - self._last_scan_us < 100_000:
+            return None
+        self._last_scan_us = self.t_us
+        n = len(self.ranges_m)
+        return LidarScan(self.t_us, -math.pi, 2 * math.pi / n, 10.0, self.ranges_m)
+
+    def read(self):
+        return OdometrySample(self.t_us, 0.0, 0.0, 0.0, 0.0, 0.0)   # the wheels never turn
+
+    def limits(self):
+        return DriveLimits(0.8, 1.5, 0.25)
+
+    def command(self, v_mps, omega_radps):
+        self.commands.append((v_mps, omega_radps))
+
+    def ranges(self):
+        return ()
+
+    def bearings(self):
+        return ()
+
+    def transmit(self, payload):
+        return False
+
+    def busy(self):
+        return False
+
+    def poll(self):
+        return ()
+
+    def hal(self) -> Hal:
+        return Hal(0, self, self, self, self, self, self, self)
+
+
+def run(fake: ScriptedHal, seconds: float) -> ExplorerAgent:
+    agent = ExplorerAgent(fake.hal())
+    agent.setup()
+    while fake.t_us < seconds * 1e6 and not agent.done:
+        agent.tick()
+        fake.t_us += 50_000
+    return agent
+
+
+def test_a_closed_room_seen_whole_is_done_at_once():
+    agent = run(ScriptedHal(np.full(360, 3.0)), 30)
+    assert agent.done and agent.status == "complete"
+    assert agent.explorer.waypoints.items == []
+    assert agent.hal.drive.commands[-1] == (0.0, 0.0)
+
+
+def test_a_robot_that_cannot_move_marks_the_obstacle_drops_targets_and_stops():
+    ranges = np.full(360, 3.0)
+    ranges[150:210] = 10.0          # an opening straight ahead: a corridor leading away
+    agent = run(ScriptedHal(ranges), 1200)
+    assert agent.bumps >= 1 and agent.local_map.bumps
+    e = agent.explorer
+    assert e.dropped_stalled + e.dropped_unreachable >= 1
+    assert agent.done, "targets that cannot be reached must be dropped for good, not retried forever"
