@@ -22,7 +22,7 @@ from firmware.local_map import KeyframeStore, LocalMap, bin_scan_by_bearing, dec
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task, TaskProfiler
 from firmware.team import STRATEGIES, Strategy, TeamView
-from firmware.topo_map import TopoMap
+from firmware.topo_map import TOPO_FIELDS, TopoMap
 from hal.bundle import Hal
 from hal.lora import RadioProfile
 from hal.samples import LidarScan
@@ -99,7 +99,7 @@ class ExplorerAgent:
         self.link.service(now_us, self.hal.radio)
         for _sender, rtype, v in self.link.received():
             if rtype == "topo":
-                self.topo.add((v["sender_id"], v["x_cm"], v["y_cm"], v["z_cm"], v["presence"], v["e_inf_code"]))
+                self.topo.add(tuple(v[f] for f in TOPO_FIELDS))
                 if v["presence"]:
                     self.team.positions[v["sender_id"]] = (v["x_cm"] / 100.0, v["y_cm"] / 100.0)
             elif rtype == "pose":
@@ -211,8 +211,7 @@ class ExplorerAgent:
         """Own records go into the own map at once and onto the air if the team shares."""
         self.topo.add(record)
         if self.link is not None:
-            names = ("sender_id", "x_cm", "y_cm", "z_cm", "presence", "e_inf_code")
-            self.link.enqueue("topo", dict(zip(names, record)), priority)
+            self.link.enqueue("topo", dict(zip(TOPO_FIELDS, record)), priority)
 
     def _maybe_add_vertex(self, x_m: float, y_m: float) -> None:
         """A record (and a keyframe) every d_build of travel: where the robot has been, what

@@ -22,8 +22,13 @@ import math
 import numpy as np
 from numba import njit
 
-# (sender_id, x_cm, y_cm, z_cm, presence, e_inf_code): a topo record as on the wire.
+from firmware.comms.schema import record_type
+
+# A topo record as on the wire: its values in the order of the schema table's fields
+# (sender_id, x_cm, y_cm, z_cm, presence, e_inf_code).
 TopoRecord = tuple[int, int, int, int, int, int]
+TOPO_FIELDS = tuple(f.name for f in record_type("topo").fields)
+assert len(TOPO_FIELDS) == 6, "fold_records reads six values per topo record"
 
 _CELL_OFFSET = 1 << 20
 
