@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from firmware.comms.link import LinkLayer
+from firmware.comms.link import LinkLayer, TdmaSchedule
 from firmware.comms.schema import e_inf_bit_to_code
 from firmware.controller import PathFollower
 from firmware.explorer import Explorer
@@ -41,7 +41,9 @@ class ExplorerAgent:
 
     def __init__(self, hal: Hal, params: ExplorationParams = ExplorationParams(),
                  rates: TaskRates = TaskRates(), strategy: Strategy = STRATEGIES["greedy"],
-                 radio_profile: RadioProfile | None = None) -> None:
+                 radio_profile: RadioProfile | None = None, team_size: int = 1) -> None:
+        """team_size: robots sharing the channel, with ids 0..team_size-1; it sizes the
+        link layer's TDMA frame (one slot per robot) on profiles with a shared channel."""
         self.hal = hal
         self.p = params
         self.rates = rates
@@ -56,7 +58,9 @@ class ExplorerAgent:
         self._last_cmd_v = 0.0
         self._stuck_ticks = 0
         self.bumps = 0
-        self.link = (LinkLayer(hal.robot_id, radio_profile)
+        self.link = (LinkLayer(hal.robot_id, radio_profile,
+                               tdma=TdmaSchedule.for_team(radio_profile, team_size, hal.robot_id,
+                                                          round(1_000_000 / rates.radio_hz)))
                      if strategy.shares_topology and radio_profile is not None else None)
         if strategy.shares_dense_map and hal.mesh is None:
             raise ValueError(f"strategy {strategy.name} shares dense maps but the robot has no mesh link")

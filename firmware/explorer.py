@@ -94,6 +94,7 @@ class Explorer:
         self.dropped_unreachable = 0
         self.dropped_stalled = 0
         self.dropped_by_presence = 0
+        self.stale_team_targets = 0
         self.reached = 0
         self._strikes: dict[tuple[float, float], int] = {}
         # Edges of the shared map that this robot's own map shows crossing a wall.
@@ -122,7 +123,7 @@ class Explorer:
         reachable = np.isfinite(dist)
         self.waypoints.update(self.map, layers.sight, reachable)
         if self.team.strategy.shares_topology:
-            self._drop_waypoints_seen_by_others(layers.state, x_m, y_m)
+            self._drop_waypoints_seen_by_others(layers.sight)
 
         # A target reached is done with: its surroundings are now observed (or unobservable).
         if self.target is not None and math.hypot(self.target.x_m - x_m, self.target.y_m - y_m) < p.waypoint_reached_m:
@@ -135,7 +136,7 @@ class Explorer:
         if topo_src is not None:
             sx, sy = self.topo.positions()[topo_src]
             to_src_m = math.hypot(sx - x_m, sy - y_m)
-        candidates = self._candidates()
+        candidates = self._candidates(layers.sight)
         for c in candidates:
             graph_cost, _ = self.topo.cost_to(topo_dist, c.x_m, c.y_m)
             c.graph_cost_m = graph_cost + to_src_m
@@ -172,52 +173,91 @@ class Explorer:
         return Plan(None, np.zeros((0, 2)), not pending)
 
     # --- targets (eq. 5) --------------------------------------------------------------
-    def _candidates(self) -> list[_Candidate]:
+    def _candidates(self, sight: np.ndarray) -> list[_Candidate]:
         """W_t = W (own waypoints) united with W_inf (vertices of the shared map with
-        obtainable information that this robot has not visited), minus banned places."""
+        obtainable information that this robot has not visited), minus banned places.
+
+        A W_inf vertex inside the local map is checked against it: if this robot's own map
+        already shows less than e_min of observable unknown there, the vertex's e_inf is stale
+        for us (a lost information record, or we saw the place from elsewhere) and it is not
+        a target. Beyond the window the shared map is all we know, and the vertex stands."""
         out = [_Candidate(w.x_m, w.y_m, w.e_bit, False) for w in self.waypoints.items]
         if self.team.strategy.shares_topology and len(self.topo):
             xy = self.topo.positions()
             open_ = (self.topo.e_inf_codes() > 0) & ~self.topo.visited_by(self.team.robot_id)
             open_[open_] &= ~self.waypoints.banned_mask(xy[open_, 0], xy[open_, 1])
-            out.extend(_Candidate(float(xy[k, 0]), float(xy[k, 1]), 0.0, True) for k in np.nonzero(open_)[0])
+            ks = np.nonzero(open_)[0]
+            if len(ks):
+                ij = np.array([self.map.cell_of(xy[k, 0], xy[k, 1]) for k in ks], np.int64).reshape(-1, 2)
+                inside = (ij[:, 0] >= 0) & (ij[:, 0] < self.map.n) & (ij[:, 1] >= 0) & (ij[:, 1] < self.map.n)
+                keep = np.ones(len(ks), bool)
+                if inside.any():
+                    cells = kernels.observable_unknown(sight, ij[inside, 0], ij[inside, 1], self.p.info_rays,
+                                                       self.p.d_cam_m / self.p.resolution_m)
+                    keep[inside] = cells * self.p.entropy_per_cell_bit >= self.p.min_cluster_entropy_bit
+                self.stale_team_targets += int((~keep).sum())
+                out.extend(_Candidate(float(xy[k, 0]), float(xy[k, 1]), 0.0, True) for k in ks[keep])
         return out
 
-    def _drop_waypoints_seen_by_others(self, state: np.ndarray, x_m: float, y_m: float) -> None:
+    def _drop_waypoints_seen_by_others(self, sight: np.ndarray) -> None:
         """Bayer & Faigl: a waypoint is removed when another robot reported its presence
-        closer than d_cam. Three refinements keep this from cancelling what nobody will see:
-        only places the other robot visited and this one did not count; only waypoints this
-        robot is not itself about to observe (farther than d_cam from it: robots leaving a
-        common staging area would otherwise cancel each other's waypoints, and MinPos is
-        there to split those); and, where our local map covers both, a clear line of sight
-        between the place and the waypoint."""
+        closer than d_cam. Taken literally that cancels what nobody looked at (robots leaving
+        a common staging area cancel each other's waypoints; a robot passing the door of a
+        room cancels the room), so a report counts here only if
+        - it comes from a place the other robot has finished with (e_inf 0 there: none of
+          its own waypoints is left around it) and this robot has not visited itself;
+        - where the local map holds both ends, no wall stands between it and the waypoint;
+        - and what stays unseen around the waypoint is small: the cells in line of sight
+          within d_cam of every place others reported (as far as our map can tell: our known
+          walls block the view, unknown cells do not) are taken as seen, and if the waypoint
+          still has presence_keep_bit of information beyond them, it stays."""
         if not len(self.topo) or not self.waypoints.items:
             return
         xy = self.topo.positions()
-        only_others = self.topo.visited_by_others(self.team.robot_id) & ~self.topo.visited_by(self.team.robot_id)
-        others = np.nonzero(only_others)[0]
+        finished = (self.topo.visited_by_others(self.team.robot_id) & ~self.topo.visited_by(self.team.robot_id)
+                    & (self.topo.e_inf_codes() == 0))
+        others = np.nonzero(finished)[0]
         if len(others) == 0:
             return
+        reported = []   # (waypoint, i, j): waypoints with a report that may cancel them
         keep = []
         for w in self.waypoints.items:
-            if math.hypot(x_m - w.x_m, y_m - w.y_m) <= self.p.d_cam_m:
-                keep.append(w)
-                continue
             d = np.hypot(xy[others, 0] - w.x_m, xy[others, 1] - w.y_m)
             near = others[d < self.p.d_cam_m]
             wi, wj = self.map.cell_of(w.x_m, w.y_m)
-            seen = False
+            if not (self._in_window(wi, wj)):
+                if len(near):
+                    self.dropped_by_presence += 1   # nothing to check against: the report stands
+                else:
+                    keep.append(w)
+                continue
             for v in near:
                 vi, vj = self.map.cell_of(xy[v, 0], xy[v, 1])
-                # Where the local map holds both ends, a wall between them keeps the waypoint;
-                # beyond it there is nothing to check against, and the report stands.
-                if not (self._in_window(wi, wj) and self._in_window(vi, vj)) or line_of_sight(state, wi, wj, vi, vj):
-                    seen = True
+                if not self._in_window(vi, vj) or line_of_sight(sight, wi, wj, vi, vj):
+                    reported.append((w, wi, wj))
                     break
-            if seen:
-                self.dropped_by_presence += 1
             else:
                 keep.append(w)
+        if reported:
+            # Everything the others saw counts, not only from the finished places.
+            places = np.nonzero(self.topo.visited_by_others(self.team.robot_id)
+                                & ~self.topo.visited_by(self.team.robot_id))[0]
+            ij = np.array([self.map.cell_of(xy[v, 0], xy[v, 1]) for v in places], np.int64).reshape(-1, 2)
+            inside = (ij[:, 0] >= 0) & (ij[:, 0] < self.map.n) & (ij[:, 1] >= 0) & (ij[:, 1] < self.map.n)
+            seen = np.zeros(sight.shape, bool)
+            kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], self.p.team_view_rays,
+                                 self.p.d_cam_m / self.p.resolution_m, seen)
+            team_sight = sight.copy()
+            team_sight[seen & (sight == kernels.UNKNOWN)] = kernels.SEEN_BY_TEAM
+            wi = np.array([r[1] for r in reported], np.int64)
+            wj = np.array([r[2] for r in reported], np.int64)
+            unseen_bit = kernels.observable_unknown(team_sight, wi, wj, self.p.info_rays,
+                                                    self.p.d_cam_m / self.p.resolution_m) * self.p.entropy_per_cell_bit
+            for (w, *_), left in zip(reported, unseen_bit):
+                if left >= self.p.presence_keep_bit:
+                    keep.append(w)
+                else:
+                    self.dropped_by_presence += 1
         self.waypoints.items = keep
 
     def _minpos_ranks(self, candidates: list[_Candidate]) -> None:

@@ -15,6 +15,9 @@ from numba import njit
 UNKNOWN = np.uint8(0)
 FREE = np.uint8(1)
 OCCUPIED = np.uint8(2)
+# Unknown to this robot but in view of a place a teammate reported being at: not counted as
+# information, and transparent to rays like UNKNOWN (see Explorer._drop_waypoints_seen_by_others).
+SEEN_BY_TEAM = np.uint8(3)
 
 
 @njit(cache=True)
@@ -294,3 +297,29 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells):
                     total += s * dtheta
         out[c] = total
     return out
+
+
+@njit(cache=True)
+def mark_visible(state, src_i, src_j, n_rays, max_range_cells, out):
+    """Set out[i, j] for every cell a ray from one of the source cells reaches within
+    max_range_cells: the view of a sensor there, as far as this map can tell. Rays march in
+    unit steps like observable_unknown and stop at an OCCUPIED cell (not marked) or the
+    window edge; UNKNOWN cells are see-through, since nothing is known to block them."""
+    rows, cols = state.shape
+    dtheta = 2.0 * math.pi / n_rays
+    steps = int(max_range_cells)
+    for c in range(src_i.shape[0]):
+        ci = src_i[c] + 0.5
+        cj = src_j[c] + 0.5
+        for k in range(n_rays):
+            a = k * dtheta
+            si = math.sin(a)
+            sj = math.cos(a)
+            for s in range(0, steps + 1):
+                i = int(math.floor(ci + s * si))
+                j = int(math.floor(cj + s * sj))
+                if i < 0 or j < 0 or i >= rows or j >= cols:
+                    break
+                if state[i, j] == OCCUPIED:
+                    break
+                out[i, j] = True

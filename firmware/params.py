@@ -27,6 +27,12 @@ class ExplorationParams:
     artifact_types: int = 5                  # "five artifacts of different type"
     candidate_spacing_m: float = 1.0         # waypoint candidates are evaluated on this sub-grid
     info_rays: int = 64                      # rays cast from a candidate to count observable cells
+    # The presence rule (Explorer._drop_waypoints_seen_by_others): a waypoint near places
+    # teammates finished with stays if this much information is out of their view (10 e_min,
+    # about 3.5 m2: a room behind a door), and their view is cast with this many rays
+    # (2 pi d_cam in cells: neighbouring rays one cell apart at d_cam).
+    presence_keep_bit: float = 900.0
+    team_view_rays: int = 600
     # Robot body and navigation.
     robot_radius_m: float = 0.25
     safety_margin_m: float = 0.07            # traversable cells keep radius + margin from walls

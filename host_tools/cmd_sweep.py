@@ -20,6 +20,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seeds", type=int, default=10, help="trials per map and strategy (seeds 0..N-1)")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--radio", default="ideal-100Bps", choices=sorted(PROFILES))
+    p.add_argument("--also-radio", nargs="+", default=[], choices=sorted(PROFILES), metavar="PROFILE",
+                   help="repeat the trials of the strategies that use the LoRa link (greedy, minpos) on "
+                        "these profiles and tabulate what they cost against --radio")
     p.add_argument("--max-sim-s", type=float, default=14400.0)
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="local worker processes (default: cores)")
     p.add_argument("--ray", default=None, metavar="ADDRESS",
@@ -33,7 +36,7 @@ def main(args: argparse.Namespace) -> int:
         print("lorascout sweep: --robots and --seeds must be at least 1", file=sys.stderr)
         return 2
     spec = SweepSpec(tuple(args.maps), tuple(args.strategies), args.robots, args.seeds, args.radio,
-                     args.max_sim_s, args.first_seed)
+                     args.max_sim_s, args.first_seed, tuple(r for r in args.also_radio if r != args.radio))
     trials = spec.trials()
     bar = progress_bar(len(trials), "sweep", "trial", args.quiet)
     try:

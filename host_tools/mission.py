@@ -156,6 +156,7 @@ def radio_metrics(air_frames: list[AirFrame], channel: Channel, agents: list, me
         "records_sent": [c.get("sent.records", 0) for c in counters],
         "deferred_duty_cycle": [c.get("deferred.duty_cycle", 0) for c in counters],
         "deferred_rate_cap": [c.get("deferred.rate_cap", 0) for c in counters],
+        "deferred_slot": [c.get("deferred.slot", 0) for c in counters],
         "dropped_queue_full": [c.get("dropped.queue_full", 0) for c in counters],
         "receptions": dict(sorted(fates.items())),
         "mesh_bytes_sent": [mesh.bytes_sent.get(i, 0) for i in range(n)],
@@ -201,7 +202,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         hal = build_sim_hal(world, i, radio=radios[i])
         if strategy.shares_dense_map:
             hal = dataclasses.replace(hal, mesh=mesh.endpoint(i))
-        agent = ExplorerAgent(hal, params, rates, strategy, profile)
+        agent = ExplorerAgent(hal, params, rates, strategy, profile, team_size=cfg.robots)
         agent.setup()
         agents.append(agent)
     try:

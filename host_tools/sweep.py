@@ -30,11 +30,21 @@ class SweepSpec:
     radio: str
     max_sim_s: float
     first_seed: int = 0
+    # Profiles to repeat the trials of the strategies that talk over LoRa on (greedy and
+    # minpos): independent does not use the radio, and the dense baselines assume a link
+    # without limits, so repeating them would measure nothing new.
+    also_radios: tuple[str, ...] = ()
+
+    def lora_strategies(self) -> tuple[str, ...]:
+        return tuple(s for s in self.strategies
+                     if strategy_named(s).shares_topology and not strategy_named(s).shares_dense_map)
 
     def trials(self) -> list[MissionConfig]:
+        grid = [(self.radio, s) for s in self.strategies]
+        grid += [(radio, s) for radio in self.also_radios for s in self.lora_strategies()]
         return [MissionConfig(map_spec=m, robots=self.robots, seed=self.first_seed + k, max_sim_s=self.max_sim_s,
-                              radio=self.radio, strategy=s)
-                for m in self.maps for s in self.strategies for k in range(self.seeds)]
+                              radio=radio, strategy=s)
+                for radio, s in grid for m in self.maps for k in range(self.seeds)]
 
 
 def run_trial(cfg: MissionConfig) -> dict:
@@ -95,7 +105,23 @@ def packet_bytes(strategy: str) -> int:
     return 0
 
 
+# (strategy, reference, ratio bound, comparison) pairs that Bayer & Faigl's claims and
+# issue 4's acceptance are about: p_max of the first over p_max of the second.
+COMPARISONS = (
+    ("minpos", "minpos-full", "<= 1.10", "topological map vs dense maps"),
+    ("minpos", "independent", "<= 0.70", "MinPos vs no communication"),
+    ("minpos", "greedy", "<= 1.00", "MinPos vs Greedy"),
+    ("greedy", "greedy-full", "<= 1.10", "topological map vs dense maps"),
+)
+
+
+def _ratio_holds(ratio: float, bound: str) -> bool:
+    return ratio <= float(bound.split()[1]) + 1e-12
+
+
 def tables(spec: SweepSpec, results: list[dict]) -> dict:
+    extra = [r for r in results if r["radio"] != spec.radio]
+    results = [r for r in results if r["radio"] == spec.radio]
     by = {}
     for r in results:
         by.setdefault((r["map_spec"], r["strategy"]), []).append(r)
@@ -129,7 +155,39 @@ def tables(spec: SweepSpec, results: list[dict]) -> dict:
             "duty_cycle_violations": sum(r["radio_stats"]["duty_cycle_violations"] for r in rs),
             "robots": spec.robots,
         })
-    return {"spec": asdict(spec), "table3_p_max": table3, "table4_communication": table4}
+    comparisons = []
+    for row in table3:
+        for a, b, bound, what in COMPARISONS:
+            if a in row and b in row and row[a]["p_max_m"] and row[b]["p_max_m"]:
+                ratio = row[a]["p_max_m"] / row[b]["p_max_m"]
+                comparisons.append({"map": row["map"], "strategy": a, "reference": b, "what": what,
+                                    "ratio": round(ratio, 3), "bound": bound, "holds": _ratio_holds(ratio, bound)})
+    radio_cost = []
+    for radio in spec.also_radios:
+        for m in spec.maps:
+            for s in spec.lora_strategies():
+                trials = [r for r in extra if r["radio"] == radio and r["map_spec"] == m and r["strategy"] == s]
+                base = by.get((m, s), [])
+                if not trials:
+                    continue
+                fates: dict[str, int] = {}
+                for r in trials:
+                    for k, v in r["radio_stats"]["receptions"].items():
+                        fates[k] = fates.get(k, 0) + v
+                heard = sum(v for k, v in fates.items() if k != "frames")
+                radio_cost.append({
+                    "radio": radio, "map": trials[0]["map"], "strategy": s,
+                    "p_max_m": round(p_max(trials), 1),
+                    "p_max_reference_m": round(p_max(base), 1) if base else None,
+                    "ratio": round(p_max(trials) / p_max(base), 3) if base else None,
+                    "coverage_min": round(min(t["coverage"] for t in trials), 4),
+                    "complete": sum(t["termination"] == "complete" for t in trials), "trials": len(trials),
+                    "duty_cycle_violations": sum(r["radio_stats"]["duty_cycle_violations"] for r in trials),
+                    "duty_cycle_worst_hour": max(max(r["radio_stats"]["duty_cycle_worst_hour"]) for r in trials),
+                    "receptions_lost_fraction": round(1 - fates.get("received", 0) / heard, 4) if heard else None,
+                })
+    return {"spec": asdict(spec), "table3_p_max": table3, "table4_communication": table4,
+            "comparisons": comparisons, "radio_cost": radio_cost}
 
 
 def markdown(t: dict) -> str:
@@ -150,6 +208,21 @@ def markdown(t: dict) -> str:
         lines.append(f"| {r['strategy']} | {r['packet_bytes']} | {r['radio_Bps_per_robot_mean']:.1f} / "
                      f"{r['radio_Bps_per_robot_peak_10s']:.1f} | {r['mesh_Bps_per_robot_mean']:.0f} | "
                      f"{r['duty_cycle_violations']} | {r['robots']} |")
+    if t["comparisons"]:
+        lines += ["", "| map | p_max ratio | value | bound | holds |", "|---|---|---:|---|:---:|"]
+        for c in t["comparisons"]:
+            lines.append(f"| {c['map']} | {c['strategy']} / {c['reference']} ({c['what']}) | {c['ratio']:.3f} | "
+                         f"{c['bound']} | {'yes' if c['holds'] else 'NO'} |")
+    if t["radio_cost"]:
+        lines += ["", f"Cost of a real band against {spec['radio']} (same maps and seeds):", "",
+                  "| radio | map | strategy | p_max [m] | vs reference | lowest coverage, complete | "
+                  "receptions lost | worst hour duty cycle | violations |", "|---|---|---|---:|---:|---|---:|---:|---:|"]
+        for c in t["radio_cost"]:
+            ref = "n/a" if c["ratio"] is None else f"{c['p_max_reference_m']:.1f} -> x{c['ratio']:.2f}"
+            lost = "n/a" if c["receptions_lost_fraction"] is None else f"{100 * c['receptions_lost_fraction']:.1f} %"
+            lines.append(f"| {c['radio']} | {c['map']} | {c['strategy']} | {c['p_max_m']:.1f} | {ref} | "
+                         f"{c['coverage_min']:.3f}, {c['complete']}/{c['trials']} | {lost} | "
+                         f"{100 * c['duty_cycle_worst_hour']:.2f} % | {c['duty_cycle_violations']} |")
     return "\n".join(lines) + "\n"
 
 
@@ -162,18 +235,19 @@ def save(out: Path, spec: SweepSpec, results: list[dict]) -> dict:
         w = csv.writer(f)
         w.writerow(["map", "strategy", "seed", "robots", "radio", "coverage", "termination", "t_total_s", "t_90_s",
                     "longest_path_m", "overlap", "radio_Bps_mean", "duty_cycle_violations"])
-        for r in sorted(results, key=lambda r: (r["map_spec"], r["strategy"], r["seed"])):
+        for r in sorted(results, key=lambda r: (r["radio"], r["map_spec"], r["strategy"], r["seed"])):
             w.writerow([r["map"], r["strategy"], r["seed"], r["robots"], r["radio"], r["coverage"], r["termination"],
                         r["t_total_s"], r["t_90_s"], max(r["path_length_m"]), r["overlap"],
                         round(float(np.mean(r["radio_stats"]["bytes_per_s_mean"])), 3),
                         r["radio_stats"]["duty_cycle_violations"]])
     with open(out / "trials.jsonl", "w") as f:
-        for r in sorted(results, key=lambda r: (r["map_spec"], r["strategy"], r["seed"])):
+        for r in sorted(results, key=lambda r: (r["radio"], r["map_spec"], r["strategy"], r["seed"])):
             f.write(json.dumps({k: v for k, v in r.items() if k != "paths_xy"}, sort_keys=True) + "\n")
     from host_tools.plots import plot_sweep_paths
 
     for m in spec.maps:
         for s in spec.strategies:
-            first = min((r for r in results if r["map_spec"] == m and r["strategy"] == s), key=lambda r: r["seed"])
+            first = min((r for r in results if r["map_spec"] == m and r["strategy"] == s and r["radio"] == spec.radio),
+                        key=lambda r: r["seed"])
             plot_sweep_paths(m, first, out / f"paths_{Path(first['map']).stem.replace(':', '_')}_{s}.png")
     return t

@@ -113,3 +113,19 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells, unknown=0
                     total += s * dtheta
         out.append(total)
     return np.array(out)
+
+
+def mark_visible(state, src_i, src_j, n_rays, max_range_cells, occupied=2):
+    rows, cols = state.shape
+    out = np.zeros((rows, cols), bool)
+    dtheta = 2 * math.pi / n_rays
+    for ci, cj in zip(src_i, src_j):
+        for k in range(n_rays):
+            a = k * dtheta
+            for s in range(0, int(max_range_cells) + 1):
+                i = math.floor(ci + 0.5 + s * math.sin(a))
+                j = math.floor(cj + 0.5 + s * math.cos(a))
+                if not (0 <= i < rows and 0 <= j < cols) or state[i, j] == occupied:
+                    break
+                out[i, j] = True
+    return out

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from firmware.comms.frame import decode_frame, encode_frame, with_hops
-from firmware.comms.link import LinkLayer, counter_names
+from firmware.comms.link import TDMA_GUARD_US, LinkLayer, TdmaSchedule, counter_names
 from hal.interfaces import RadioModem
 from hal.lora import profile
 from hal.samples import RadioRxFrame, RadioTxDone
@@ -300,3 +300,40 @@ def test_duplicate_iff_seen_before_within_the_window(base, offsets):
         step(link, radio, 0)
         assert (link.counters["received.duplicate"] > before) == (seq in seen)
         seen.add(seq)
+
+
+def test_tdma_sends_only_in_own_slot_and_fits_the_longest_frame():
+    prof = profile("eu868-g3")
+    tick_us = 50_000
+    sched = TdmaSchedule.for_team(prof, 5, 7, tick_us)
+    assert sched.own_slot == 2 and sched.slots == 5 and sched.slot_us % tick_us == 0
+    assert sched.slot_us >= prof.airtime_us(255) + TDMA_GUARD_US
+    assert TdmaSchedule.for_team(prof, 1, 0, tick_us) is None                    # alone on the air
+    assert TdmaSchedule.for_team(profile("ideal-100Bps"), 5, 0, tick_us) is None  # no collisions to avoid
+    link, radio = LinkLayer(7, prof, tdma=sched), FakeRadio(prof)
+    for i in range(60):
+        link.enqueue("topo", topo(i))
+    period = sched.slot_us * sched.slots
+    for now in range(0, 3 * period, tick_us):
+        step(link, radio, now)
+    assert link.queue_len == 0 and len(radio.sent) == 3
+    for start, frame in radio.sent:
+        offset = start % period
+        assert sched.slot_us * 2 <= offset
+        assert offset + prof.airtime_us(len(frame)) <= sched.slot_us * 3 - TDMA_GUARD_US
+    assert link.counters["deferred.slot"] > 0
+
+
+def test_tdma_slots_of_a_team_never_overlap():
+    prof = profile("eu868-g1")
+    scheds = [TdmaSchedule.for_team(prof, 4, k, 50_000) for k in range(4)]
+    period = scheds[0].slot_us * 4
+    air = prof.airtime_us(255)
+    for now in range(0, period, 10_000):
+        assert sum(s.may_start(now, 0) for s in scheds) <= 1
+        open_ = [s for s in scheds if s.may_start(now, air)]
+        assert len(open_) <= 1
+    with pytest.raises(ValueError):
+        TdmaSchedule(10_000, 4, 0)
+    with pytest.raises(ValueError):
+        TdmaSchedule(100_000, 4, 4)

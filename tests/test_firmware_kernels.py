@@ -101,6 +101,30 @@ def test_observable_unknown_matches_reference(state, data):
                                ref.observable_unknown(state, ci, cj, rays, reach), rtol=1e-12)
 
 
+@SETTINGS
+@given(grids(values=(0, 1, 2)), st.data())
+def test_mark_visible_matches_reference(state, data):
+    rows, cols = state.shape
+    k = data.draw(st.integers(0, 5))
+    si = np.array(data.draw(st.lists(st.integers(0, rows - 1), min_size=k, max_size=k)), np.int64)
+    sj = np.array(data.draw(st.lists(st.integers(0, cols - 1), min_size=k, max_size=k)), np.int64)
+    rays = data.draw(st.integers(4, 400))
+    reach = data.draw(st.floats(0.0, 40.0))
+    out = np.zeros(state.shape, bool)
+    kernels.mark_visible(state, si, sj, rays, reach, out)
+    np.testing.assert_array_equal(out, ref.mark_visible(state, si, sj, rays, reach))
+
+
+def test_mark_visible_stops_at_walls():
+    state = np.zeros((60, 60), np.uint8)
+    state[:, 40] = kernels.OCCUPIED
+    out = np.zeros(state.shape, bool)
+    kernels.mark_visible(state, np.array([30]), np.array([30]), 600, 25.0, out)
+    assert out[30, 39] and out[30, 5] and out[5, 30]
+    assert not out[:, 40:].any()          # the wall and everything behind it
+    assert not out[30, 30 - 27]           # beyond the range
+
+
 def test_observable_unknown_counts_about_the_disc_area():
     state = np.zeros((101, 101), np.uint8)
     count = kernels.observable_unknown(state, np.array([50]), np.array([50]), 256, 30.0)[0]

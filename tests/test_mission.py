@@ -56,6 +56,17 @@ def test_serial_radio_gives_the_same_mission_as_the_in_process_radio(shared_maps
     assert sum(inproc.radio["frames_sent"]) > 0
 
 
+def test_a_team_on_a_lora_band_takes_turns_on_the_air(shared_maps):
+    """Five robots start together and tick in lockstep: without the link layer's TDMA slots
+    they key up together. With them, no frame meets another on the air."""
+    r = run_mission(MissionConfig(map_spec=str(shared_maps / "maze_a.yaml"), robots=5, seed=2, max_sim_s=60,
+                                  radio="eu868-g3", strategy="minpos"))
+    fates = r.radio["receptions"]
+    assert sum(r.radio["frames_sent"]) > 50 and fates.get("received", 0) > 200
+    assert fates.get("collided", 0) == 0 and fates.get("half_duplex", 0) == 0
+    assert min(r.radio["deferred_slot"]) > 0 and r.radio["duty_cycle_violations"] == 0
+
+
 def _cli(*args, timeout=600):
     return subprocess.run([sys.executable, "-m", "host_tools.cli", *args], capture_output=True, text=True,
                           timeout=timeout)

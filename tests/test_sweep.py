@@ -7,7 +7,7 @@ import pytest
 from host_tools.sweep import SweepSpec, markdown, p_max, run_local, save
 
 SPEC = SweepSpec(maps=("cave:4:40x40",), strategies=("minpos", "independent"), robots=2, seeds=2,
-                 radio="ideal-100Bps", max_sim_s=40.0)
+                 radio="ideal-100Bps", max_sim_s=40.0, also_radios=("eu868-g3",))
 
 
 def test_p_max_is_the_median_of_the_longest_paths():
@@ -18,18 +18,29 @@ def test_p_max_is_the_median_of_the_longest_paths():
 def test_local_sweep_writes_tables_and_figures(tmp_path):
     done = []
     results = run_local(SPEC.trials(), jobs=2, on_done=done.append)
-    assert len(results) == len(done) == 4
+    # Both strategies on the reference radio; only minpos (it talks over LoRa) on eu868-g3.
+    assert len(results) == len(done) == 6
+    assert sorted((r["radio"], r["strategy"]) for r in results if r["radio"] == "eu868-g3") == [("eu868-g3", "minpos")] * 2
     t = save(tmp_path, SPEC, results)
     row = t["table3_p_max"][0]
     for s in SPEC.strategies:
-        longest = sorted(max(r["path_length_m"]) for r in results if r["strategy"] == s)
+        longest = sorted(max(r["path_length_m"]) for r in results if r["strategy"] == s and r["radio"] == SPEC.radio)
         assert row[s]["p_max_m"] == round((longest[0] + longest[1]) / 2, 1)
+    (cmp,) = t["comparisons"]
+    assert (cmp["strategy"], cmp["reference"]) == ("minpos", "independent")
+    assert cmp["ratio"] == round(row["minpos"]["p_max_m"] / row["independent"]["p_max_m"], 3)
+    assert cmp["holds"] == (cmp["ratio"] <= 0.70)
+    (cost,) = t["radio_cost"]
+    g3 = sorted(max(r["path_length_m"]) for r in results if r["radio"] == "eu868-g3")
+    assert cost["p_max_m"] == round((g3[0] + g3[1]) / 2, 1) and cost["duty_cycle_violations"] == 0
+    assert cost["p_max_reference_m"] == row["minpos"]["p_max_m"] and 0 <= cost["receptions_lost_fraction"] < 1
     comm = {r["strategy"]: r for r in t["table4_communication"]}
     assert comm["minpos"]["packet_bytes"] == 12 and comm["minpos"]["radio_Bps_per_robot_mean"] > 0
     assert comm["independent"]["radio_Bps_per_robot_mean"] == 0
     assert "| cave:4:40x40 |" in markdown(t)
     assert json.loads((tmp_path / "tables.json").read_text())["spec"]["seeds"] == 2
-    assert len((tmp_path / "trials.csv").read_text().splitlines()) == 5
+    assert len((tmp_path / "trials.csv").read_text().splitlines()) == 7
+    assert "eu868-g3 | cave:4:40x40 | minpos |" in markdown(t)
     for s in SPEC.strategies:
         assert (tmp_path / f"paths_cave_4_40x40_{s}.png").read_bytes()[:4] == b"\x89PNG"
     # Worker processes give the missions the same results as running them here.

@@ -8,7 +8,8 @@ Per `service(now_us, radio)` call:
    (sender, seq) with a 64-frame RFC 1982 window per sender (256 senders at most, so memory
    is bounded), optionally queue it for relay (managed flood: hop limit in the header,
    duplicates never relayed), and hand its records to `received()`.
-2. if the radio is idle and something waits: build one frame (relays first, else the
+2. if the radio is idle, something waits and (with a TDMA schedule) the robot's slot is open
+   long enough: build one frame (relays first, else the
    highest-priority records that fit `profile.max_payload_bytes`, grouped by type), and send
    it only if (a) the sub-band airtime budget holds in the duty-cycle window ending when this
    frame would end (the worst window, see `_duty_cycle_ok`) and (b) the optional byte-rate
@@ -19,8 +20,8 @@ Counters (`counters`, all present from the start; see counter_names):
                                               records: own records only)
     relayed                                   frames re-sent for another originator
     airtime_us.<sub-band>                     own transmit time, per sub-band
-    deferred.duty_cycle / .rate_cap / .radio_busy   service calls that had something to send
-                                              but waited, by reason
+    deferred.duty_cycle / .rate_cap / .radio_busy / .slot   service calls that had something
+                                              to send but waited, by reason
     dropped.queue_full / .too_large / .relay_queue_full   records or relays thrown away
     superseded                                queued records replaced by a newer one (same key)
     received.<reason>                         frames by decode reason (ok = new, accepted)
@@ -31,6 +32,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Hashable, Mapping
+from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
@@ -44,13 +46,49 @@ from hal.lora import RadioProfile
 from hal.samples import RadioRxFrame, RadioTxDone
 
 DEDUP_WINDOW = 64
+TDMA_GUARD_US = 20_000   # idle time at the end of each slot: clock offset and modem turnaround
+
+
+@dataclass(frozen=True)
+class TdmaSchedule:
+    """Time-division access for a team on one shared channel: time is cut into frames of
+    `slots` slots of `slot_us`; robot k may start a transmission only inside slot k mod slots,
+    and only if it ends `TDMA_GUARD_US` before the slot does. Robots that start together and
+    tick in lockstep would otherwise key up together and collide (pure ALOHA), and a robot
+    transmitting cannot hear (half duplex). Needs clocks that agree to within the guard."""
+
+    slot_us: int
+    slots: int
+    own_slot: int
+
+    def __post_init__(self) -> None:
+        if self.slot_us <= TDMA_GUARD_US or self.slots < 1 or not 0 <= self.own_slot < self.slots:
+            raise ValueError(f"bad TDMA schedule: slot {self.slot_us} us (guard {TDMA_GUARD_US} us), "
+                             f"{self.slots} slots, own slot {self.own_slot}")
+
+    @classmethod
+    def for_team(cls, profile: RadioProfile, team_size: int, node_id: int,
+                 tick_us: int) -> TdmaSchedule | None:
+        """One slot per robot, each long enough for the longest frame plus the guard, rounded
+        up to whole ticks of the radio task (transmissions start on ticks). None where slots
+        buy nothing: a team of one, or a channel model without collisions (ideal profiles)."""
+        if team_size <= 1 or profile.ideal:
+            return None
+        need_us = profile.airtime_us(min(profile.max_payload_bytes, MAX_FRAME_BYTES)) + TDMA_GUARD_US
+        slot_us = -(-need_us // tick_us) * tick_us
+        return cls(slot_us, team_size, node_id % team_size)
+
+    def may_start(self, now_us: int, airtime_us: int) -> bool:
+        in_frame_us = now_us % (self.slot_us * self.slots)
+        start_us = self.own_slot * self.slot_us
+        return start_us <= in_frame_us and in_frame_us + airtime_us <= start_us + self.slot_us - TDMA_GUARD_US
 
 
 def counter_names(sub_band: str) -> tuple[str, ...]:
     """Every counter a LinkLayer keeps, all present from the start (zero)."""
     return (
         "sent.frames", "sent.bytes", "sent.records", "relayed", f"airtime_us.{sub_band}",
-        "deferred.duty_cycle", "deferred.rate_cap", "deferred.radio_busy",
+        "deferred.duty_cycle", "deferred.rate_cap", "deferred.radio_busy", "deferred.slot",
         "dropped.queue_full", "dropped.too_large", "dropped.relay_queue_full", "superseded",
         *(f"received.{r.value}" for r in REASONS),
         "received.duplicate", "received.own", "received.records",
@@ -61,10 +99,12 @@ def counter_names(sub_band: str) -> tuple[str, ...]:
 class LinkLayer:
     def __init__(self, node_id: int, profile: RadioProfile, relay_hop_limit: int = 0,
                  byte_rate_cap_Bps: float | None = None, queue_limit: int = 64,
-                 relay_queue_limit: int = 8, first_seq: int = 0) -> None:
+                 relay_queue_limit: int = 8, first_seq: int = 0,
+                 tdma: TdmaSchedule | None = None) -> None:
         """relay_hop_limit: hops left written into our frames, and whether we relay others'
         (0 = off). byte_rate_cap_Bps: None takes profile.byte_rate_cap_Bps; float('inf')
-        disables a profile's cap."""
+        disables a profile's cap. tdma: transmit only in this robot's slot (None: whenever
+        the radio is idle)."""
         if not 0 <= node_id <= 255:
             raise ValueError(f"node_id {node_id} outside [0, 255]")
         if not 0 <= relay_hop_limit <= MAX_HOPS:
@@ -76,6 +116,7 @@ class LinkLayer:
         self.relay_hop_limit = relay_hop_limit
         self.queue_limit = queue_limit
         self.relay_queue_limit = relay_queue_limit
+        self.tdma = tdma
         self.max_frame_bytes = min(profile.max_payload_bytes, MAX_FRAME_BYTES)
         cap = profile.byte_rate_cap_Bps if byte_rate_cap_Bps is None else byte_rate_cap_Bps
         self._rate_Bps: Fraction | None = (
@@ -164,12 +205,18 @@ class LinkLayer:
         if radio.busy():
             self._counters["deferred.radio_busy"] += 1
             return
+        if self.tdma is not None and not self.tdma.may_start(now_us, 0):
+            self._counters["deferred.slot"] += 1   # not our slot: do not even build a frame
+            return
         relay = bool(self._relay)
         if relay:
             frame, taken = self._relay[0], []
         else:
             frame, taken = self._build_frame()
         airtime_us = self.profile.airtime_us(len(frame))
+        if self.tdma is not None and not self.tdma.may_start(now_us, airtime_us):
+            self._counters["deferred.slot"] += 1
+            return
         if not self._duty_cycle_ok(now_us, airtime_us):
             self._counters["deferred.duty_cycle"] += 1
             return
