@@ -1,0 +1,80 @@
+"""The presence rule (Bayer & Faigl IV-A, with the refinements in
+Explorer._drop_waypoints_seen_by_others) on hand-built local maps: a corridor along x with an
+open, unexplored end, and a door in its north wall into an unexplored room."""
+import numpy as np
+import pytest
+
+from firmware.explorer import Explorer
+from firmware.local_map import KeyframeStore, LocalMap
+from firmware.params import ExplorationParams
+from firmware.team import STRATEGIES, TeamView
+from firmware.topo_map import TopoMap
+from firmware.waypoints import Waypoint
+
+P = ExplorationParams()
+ME, OTHER = 0, 1
+
+
+def _explorer() -> Explorer:
+    """Corridor y in [19, 21] m from x = 5 to 35 m, walls along both sides, unknown beyond
+    x = 35 m (the open end) and north of a 1 m door at x in [20, 21] m."""
+    local_map = LocalMap(P, 20.0, 20.0, KeyframeStore(P.keyframe_bins))
+    lo = local_map.logodds
+    lo[:] = 0.0
+
+    def box(x0, x1, y0, y1, value):
+        i0, j0 = local_map.cell_of(x0, y0)
+        i1, j1 = local_map.cell_of(x1, y1)
+        lo[i0:i1 + 1, j0:j1 + 1] = value
+
+    box(5.0, 35.0, 19.0, 21.0, P.logodds_min)        # corridor floor, seen free
+    box(5.0, 35.0, 18.8, 18.9, P.logodds_max)        # south wall
+    box(5.0, 19.9, 21.1, 21.2, P.logodds_max)        # north wall, west of the door
+    box(21.1, 35.0, 21.1, 21.2, P.logodds_max)       # north wall, east of the door
+    topo = TopoMap(P.d_build_m, P.d_connect_m)
+    return Explorer(P, local_map, topo, TeamView(ME, STRATEGIES["minpos"]))
+
+
+def _report(ex: Explorer, sender: int, x_m: float, y_m: float, e_inf_code: int) -> None:
+    ex.topo.add((sender, round(x_m * 100), round(y_m * 100), 0, 1, e_inf_code))
+
+
+def _apply(ex: Explorer, *waypoints: tuple[float, float]) -> list[tuple[float, float]]:
+    ex.waypoints.items = [Waypoint(x, y, 1000.0) for x, y in waypoints]
+    ex._drop_waypoints_seen_by_others(ex.map.layers().sight)
+    return [(w.x_m, w.y_m) for w in ex.waypoints.items]
+
+
+def test_a_waypoint_a_teammate_finished_with_in_plain_view_is_dropped():
+    ex = _explorer()
+    _report(ex, OTHER, 33.0, 20.0, 0)        # stood near the open end, nothing left there
+    assert _apply(ex, (30.0, 20.0)) == []
+    assert ex.dropped_by_presence == 1
+
+
+@pytest.mark.parametrize("why", ["information left", "visited by me too", "no report near"])
+def test_a_report_counts_only_from_a_finished_place_i_did_not_visit(why):
+    ex = _explorer()
+    if why == "information left":
+        _report(ex, OTHER, 33.0, 20.0, 40)
+    elif why == "visited by me too":
+        _report(ex, OTHER, 33.0, 20.0, 0)
+        _report(ex, ME, 33.0, 20.0, 0)
+    else:
+        _report(ex, OTHER, 8.0, 20.0, 0)     # 22 m away: farther than d_cam
+    assert _apply(ex, (30.0, 20.0)) == [(30.0, 20.0)]
+
+
+def test_a_wall_between_keeps_the_waypoint():
+    ex = _explorer()
+    _report(ex, OTHER, 30.0, 16.0, 0)        # south of the corridor's south wall, 4 m away
+    assert _apply(ex, (30.0, 20.0)) == [(30.0, 20.0)]
+
+
+def test_passing_the_door_of_a_room_does_not_cancel_the_room():
+    ex = _explorer()
+    # The teammate went along the corridor and finished with it: it looked through the door
+    # from the corridor, but most of the room was never in its view.
+    for x in np.arange(6.0, 35.0, 1.0):
+        _report(ex, OTHER, float(x), 20.0, 0)
+    assert _apply(ex, (20.5, 21.6), (30.0, 20.0)) == [(20.5, 21.6)]
