@@ -225,7 +225,7 @@ class Explorer:
             d = np.hypot(xy[others, 0] - w.x_m, xy[others, 1] - w.y_m)
             near = others[d < self.p.d_cam_m]
             wi, wj = self.map.cell_of(w.x_m, w.y_m)
-            if not (self._in_window(wi, wj)):
+            if not self._in_window(wi, wj):
                 if len(near):
                     self.dropped_by_presence += 1   # nothing to check against: the report stands
                 else:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 from pathlib import Path
@@ -10,7 +11,7 @@ from pathlib import Path
 from firmware.team import STRATEGIES
 from hal.lora import PROFILES
 from host_tools.progress import progress_bar
-from host_tools.sweep import SweepSpec, markdown, run_local, run_ray, save
+from host_tools.sweep import PARTIAL_NAME, SweepSpec, load_partial, markdown, run_local, run_ray, save, trial_key
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -28,6 +29,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ray", default=None, metavar="ADDRESS",
                    help="run on a Ray cluster instead ('local' starts one here)")
     p.add_argument("--out", type=Path, default=Path("out/sweep"), help="where tables and figures go")
+    p.add_argument("--resume", action="store_true",
+                   help=f"keep the trials an interrupted run of the same sweep finished (OUT/{PARTIAL_NAME}) "
+                        "and run only the rest; meant for the same code, which it does not check")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -38,18 +42,39 @@ def main(args: argparse.Namespace) -> int:
     spec = SweepSpec(tuple(args.maps), tuple(args.strategies), args.robots, args.seeds, args.radio,
                      args.max_sim_s, args.first_seed, tuple(r for r in args.also_radio if r != args.radio))
     trials = spec.trials()
-    bar = progress_bar(len(trials), "sweep", "trial", args.quiet)
     try:
-        if args.ray is not None:
-            results = run_ray(trials, None if args.ray == "local" else args.ray, lambda _r: bar.update(1))
-        else:
-            results = run_local(trials, args.jobs, lambda _r: bar.update(1))
-    except (ValueError, KeyError, OSError, RuntimeError) as exc:
-        bar.close()
+        wanted = {trial_key(c) for c in trials}
+        kept = load_partial(args.out) if args.resume else []
+        earlier = [r for r in kept if trial_key(r) in wanted]
+    except (ValueError, OSError) as exc:
         print(f"lorascout sweep: {exc}", file=sys.stderr)
         return 2
+    done_keys = {trial_key(r) for r in earlier}
+    todo = [c for c in trials if trial_key(c) not in done_keys]
+    if earlier:
+        print(f"resuming: {len(earlier)} trials done earlier, {len(todo)} to run", file=sys.stderr)
+    args.out.mkdir(parents=True, exist_ok=True)
+    bar = progress_bar(len(todo), "sweep", "trial", args.quiet)
+    # Each finished trial goes to disk at once: an interrupted sweep loses only what ran.
+    with open(args.out / PARTIAL_NAME, "w") as partial:
+        for report in kept:            # rewritten whole: a line cut short is gone, not appended to
+            partial.write(json.dumps(report, sort_keys=True) + "\n")
+        def finished(report: dict) -> None:
+            partial.write(json.dumps(report, sort_keys=True) + "\n")
+            partial.flush()
+            bar.update(1)
+
+        try:
+            if args.ray is not None:
+                results = run_ray(todo, None if args.ray == "local" else args.ray, finished)
+            else:
+                results = run_local(todo, args.jobs, finished)
+        except (ValueError, KeyError, OSError, RuntimeError) as exc:
+            bar.close()
+            print(f"lorascout sweep: {exc}", file=sys.stderr)
+            return 2
     bar.close()
-    t = save(args.out, spec, results)
+    t = save(args.out, spec, earlier + results)
     print(markdown(t))
     print(f"wrote {args.out}/tables.md, tables.json, trials.csv, trials.jsonl and paths_*.png")
     return 0

@@ -52,8 +52,41 @@ def run_trial(cfg: MissionConfig) -> dict:
     r = run_mission(cfg)
     report = r.to_json()
     report["map_spec"] = cfg.map_spec
+    report["max_sim_s"] = cfg.max_sim_s
     report["paths_xy"] = [t[::PATH_DECIMATION, :2].round(2).tolist() for t in r.trajectories]
     return report
+
+
+PARTIAL_NAME = "trials.partial.jsonl"   # every finished trial, paths included, as it finishes
+
+
+def trial_key(cfg_or_report: MissionConfig | dict) -> tuple:
+    """What identifies a trial in a grid (for resuming one)."""
+    if isinstance(cfg_or_report, MissionConfig):
+        c = cfg_or_report
+        return (c.map_spec, c.strategy, c.radio, c.seed, c.robots, float(c.max_sim_s))
+    r = cfg_or_report
+    return (r["map_spec"], r["strategy"], r["radio"], r["seed"], r["robots"], float(r["max_sim_s"]))
+
+
+def load_partial(out: Path) -> list[dict]:
+    """Trials an earlier, interrupted run of the same sweep finished. A line cut short by the
+    interruption (the last one) is skipped; anything else malformed is an error, with its line."""
+    path = out / PARTIAL_NAME
+    if not path.exists():
+        return []
+    lines = path.read_text().splitlines()
+    done = []
+    for n, line in enumerate(lines, 1):
+        try:
+            report = json.loads(line)
+            trial_key(report)
+        except (json.JSONDecodeError, KeyError, TypeError) as exc:
+            if n == len(lines):
+                break
+            raise ValueError(f"{path}:{n}: not a trial report ({exc})") from None
+        done.append(report)
+    return done
 
 
 def run_local(trials: list[MissionConfig], jobs: int, on_done: Callable[[dict], None]) -> list[dict]:

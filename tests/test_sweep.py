@@ -59,3 +59,29 @@ def test_ray_sweep_on_a_local_instance(tmp_path):
         ray.shutdown()
     local = run_local(SPEC.trials()[:2], jobs=1, on_done=lambda r: None)
     assert [r["trajectory_sha256"] for r in results] == [r["trajectory_sha256"] for r in local]
+
+
+def test_an_interrupted_sweep_resumes_where_it_stopped(tmp_path, capsys):
+    from host_tools.cli import main
+    from host_tools.sweep import PARTIAL_NAME
+
+    argv = ["sweep", "--maps", "cave:4:40x40", "--strategies", "minpos", "independent", "--robots", "2",
+            "--seeds", "1", "--max-sim-s", "20", "--jobs", "1", "--quiet", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    partial = tmp_path / PARTIAL_NAME
+    full = partial.read_text().splitlines()
+    assert len(full) == 2
+    first = json.loads(full[0])
+    # Interrupted: one trial written, the next cut off mid-line.
+    partial.write_text(full[0] + "\n" + full[1][:40])
+    capsys.readouterr()
+    assert main(argv + ["--resume"]) == 0
+    assert "resuming: 1 trials done earlier, 1 to run" in capsys.readouterr().err
+    rows = (tmp_path / "trials.csv").read_text().splitlines()[1:]
+    assert sorted(r.split(",")[1] for r in rows) == ["independent", "minpos"]
+    kept = [json.loads(line) for line in partial.read_text().splitlines()]
+    assert len(kept) == 2 and kept[0]["trajectory_sha256"] == first["trajectory_sha256"]
+    # A damaged line that is not the last is an error naming the file and line.
+    partial.write_text("{not json\n" + full[0] + "\n")
+    assert main(argv + ["--resume"]) == 2
+    assert f"{partial}:1: not a trial report" in capsys.readouterr().err
