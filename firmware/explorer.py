@@ -106,6 +106,11 @@ class Explorer:
     def _in_window(self, i: int, j: int) -> bool:
         return 0 <= i < self.map.n and 0 <= j < self.map.n
 
+    def _cells_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Local-map cells (rows of i, j) of world points, and which of them are in the window."""
+        ij = np.array([self.map.cell_of(x, y) for x, y in xy], np.int64).reshape(-1, 2)
+        return ij, (ij >= 0).all(axis=1) & (ij < self.map.n).all(axis=1)
+
     def plan(self, x_m: float, y_m: float, now_us: int) -> Plan:
         p = self.p
         res = p.resolution_m
@@ -188,8 +193,7 @@ class Explorer:
             open_[open_] &= ~self.waypoints.banned_mask(xy[open_, 0], xy[open_, 1])
             ks = np.nonzero(open_)[0]
             if len(ks):
-                ij = np.array([self.map.cell_of(xy[k, 0], xy[k, 1]) for k in ks], np.int64).reshape(-1, 2)
-                inside = (ij[:, 0] >= 0) & (ij[:, 0] < self.map.n) & (ij[:, 1] >= 0) & (ij[:, 1] < self.map.n)
+                ij, inside = self._cells_of(xy[ks])
                 keep = np.ones(len(ks), bool)
                 if inside.any():
                     cells = kernels.observable_unknown(sight, ij[inside, 0], ij[inside, 1], self.p.info_rays,
@@ -242,8 +246,7 @@ class Explorer:
             # Everything the others saw counts, not only from the finished places.
             places = np.nonzero(self.topo.visited_by_others(self.team.robot_id)
                                 & ~self.topo.visited_by(self.team.robot_id))[0]
-            ij = np.array([self.map.cell_of(xy[v, 0], xy[v, 1]) for v in places], np.int64).reshape(-1, 2)
-            inside = (ij[:, 0] >= 0) & (ij[:, 0] < self.map.n) & (ij[:, 1] >= 0) & (ij[:, 1] < self.map.n)
+            ij, inside = self._cells_of(xy[places])
             seen = np.zeros(sight.shape, bool)
             kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], self.p.team_view_rays,
                                  self.p.d_cam_m / self.p.resolution_m, seen)
