@@ -81,6 +81,21 @@ class MissionResult:
     def sim_speedup(self) -> float:
         return self.sim_s / self.wall_s if self.wall_s > 0 else math.inf
 
+    def explorer_stats(self) -> dict[str, list[int]]:
+        """Per robot: how its targets ended (reached, dropped as unreachable or stalled),
+        waypoints cancelled by teammates' presence and shared-map targets found stale in its
+        own map (both counted per planning cycle: a place counts again each cycle it is
+        found again), and obstacles it bumped into."""
+        ex = [a.explorer for a in self.agents]
+        return {
+            "targets_reached": [e.reached for e in ex],
+            "targets_unreachable": [e.dropped_unreachable for e in ex],
+            "targets_stalled": [e.dropped_stalled for e in ex],
+            "waypoints_dropped_by_presence": [e.dropped_by_presence for e in ex],
+            "team_targets_stale": [e.stale_team_targets for e in ex],
+            "bumps": [a.bumps for a in self.agents],
+        }
+
     def to_json(self) -> dict:
         return {
             "map": self.map_label,
@@ -103,6 +118,7 @@ class MissionResult:
             "trajectory_sha256": self.trajectory_sha256,
             "air_log_sha256": self.air_log_sha256,
             "radio_stats": self.radio,
+            "explorer_stats": self.explorer_stats(),
             # Wall-clock figures: the only keys that differ between identical runs.
             "wall_s": round(self.wall_s, 3),
             "sim_speedup": round(self.sim_speedup, 2),

@@ -65,6 +65,8 @@ def test_a_team_on_a_lora_band_takes_turns_on_the_air(shared_maps):
     assert sum(r.radio["frames_sent"]) > 50 and fates.get("received", 0) > 200
     assert fates.get("collided", 0) == 0 and fates.get("half_duplex", 0) == 0
     assert min(r.radio["deferred_slot"]) > 0 and r.radio["duty_cycle_violations"] == 0
+    stats = r.to_json()["explorer_stats"]
+    assert all(len(v) == 5 for v in stats.values()) and sum(stats["targets_reached"]) > 0
 
 
 def _cli(*args, timeout=600):
