@@ -183,9 +183,11 @@ class Explorer:
         obtainable information that this robot has not visited), minus banned places.
 
         A W_inf vertex inside the local map is checked against it: if this robot's own map
-        already shows less than e_min of observable unknown there, the vertex's e_inf is stale
-        for us (a lost information record, or we saw the place from elsewhere) and it is not
-        a target. Beyond the window the shared map is all we know, and the vertex stands."""
+        shows less than e_min of unknown in view within 2 d_cam of it, the vertex's e_inf is
+        stale for us (a lost information record, or we saw the place from elsewhere) and it
+        is not a target. 2 d_cam, not d_cam: e_inf counts the sender's waypoints nearest to
+        the vertex, which see d_cam around themselves and lie up to a sensor range away
+        from it. Beyond the window the shared map is all we know, and the vertex stands."""
         out = [_Candidate(w.x_m, w.y_m, w.e_bit, False) for w in self.waypoints.items]
         if self.team.strategy.shares_topology and len(self.topo):
             xy = self.topo.positions()
@@ -197,7 +199,7 @@ class Explorer:
                 keep = np.ones(len(ks), bool)
                 if inside.any():
                     cells = kernels.observable_unknown(sight, ij[inside, 0], ij[inside, 1], self.p.info_rays,
-                                                       self.p.d_cam_m / self.p.resolution_m)
+                                                       2.0 * self.p.d_cam_m / self.p.resolution_m)
                     keep[inside] = cells * self.p.entropy_per_cell_bit >= self.p.min_cluster_entropy_bit
                 self.stale_team_targets += int((~keep).sum())
                 out.extend(_Candidate(float(xy[k, 0]), float(xy[k, 1]), 0.0, True) for k in ks[keep])
