@@ -220,9 +220,8 @@ class Explorer:
         if not len(self.topo) or not self.waypoints.items:
             return
         xy = self.topo.positions()
-        finished = (self.topo.visited_by_others(self.team.robot_id) & ~self.topo.visited_by(self.team.robot_id)
-                    & (self.topo.e_inf_codes() == 0))
-        others = np.nonzero(finished)[0]
+        only_others = self.topo.visited_by_others(self.team.robot_id) & ~self.topo.visited_by(self.team.robot_id)
+        others = np.nonzero(only_others & (self.topo.e_inf_codes() == 0))[0]
         if len(others) == 0:
             return
         reported = []   # (waypoint, i, j): waypoints with a report that may cancel them
@@ -248,8 +247,7 @@ class Explorer:
             # Everything the others saw counts, not only from the finished places. A place more
             # than 2 d_cam from every such waypoint sees nothing the waypoint would (1 m spare
             # for cell rounding), so it is left out: the same result, much less ray casting.
-            places = np.nonzero(self.topo.visited_by_others(self.team.robot_id)
-                                & ~self.topo.visited_by(self.team.robot_id))[0]
+            places = np.nonzero(only_others)[0]
             wxy = np.array([(w.x_m, w.y_m) for w, *_ in reported])
             reach2 = (2.0 * self.p.d_cam_m + 1.0) ** 2
             d2 = ((xy[places, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
