@@ -263,31 +263,47 @@ def dijkstra_grid(traversable, cell_cost, start_i, start_j):
 
 
 @njit(cache=True)
+def ray_offsets(n_rays, steps):
+    """Cell offsets (row, col) of the steps 0..steps along n_rays rays from a cell centre:
+    step s of ray k lies at floor(0.5 + s sin(k dtheta)), floor(0.5 + s cos(k dtheta)).
+    The same for every source cell, so the ray kernels compute it once per call and then
+    march in integers; it also makes a ray's cells independent of where its source is."""
+    out = np.empty((n_rays, steps + 1, 2), np.int32)
+    dtheta = 2.0 * math.pi / n_rays
+    for k in range(n_rays):
+        a = k * dtheta
+        si = math.sin(a)
+        sj = math.cos(a)
+        for s in range(steps + 1):
+            out[k, s, 0] = int(math.floor(0.5 + s * si))
+            out[k, s, 1] = int(math.floor(0.5 + s * sj))
+    return out
+
+
+@njit(cache=True)
 def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells):
     """For each candidate cell, the number of UNKNOWN cells observable from it within
     max_range_cells (eq. 3's observable(nu, xi) by ray casting in the local map).
 
-    Rays march in unit steps and stop at an OCCUPIED cell or the window edge (what lies
-    outside the window is not known to be unknown). Each visited unknown cell counts for
-    the area its ray stands for at that distance, r * dtheta, so the sum estimates the
-    number of distinct cells without double counting near the candidate.
+    Rays march in unit steps (ray_offsets) and stop at an OCCUPIED cell or the window edge
+    (what lies outside the window is not known to be unknown). Each visited unknown cell
+    counts for the area its ray stands for at that distance, r * dtheta, so the sum
+    estimates the number of distinct cells without double counting near the candidate.
     """
     rows, cols = state.shape
     n = cand_i.shape[0]
     out = np.zeros(n, np.float64)
     dtheta = 2.0 * math.pi / n_rays
     steps = int(max_range_cells)
+    off = ray_offsets(n_rays, steps)
     for c in range(n):
         total = 0.0
-        ci = cand_i[c] + 0.5
-        cj = cand_j[c] + 0.5
+        ci = cand_i[c]
+        cj = cand_j[c]
         for k in range(n_rays):
-            a = k * dtheta
-            si = math.sin(a)
-            sj = math.cos(a)
             for s in range(1, steps + 1):
-                i = int(math.floor(ci + s * si))
-                j = int(math.floor(cj + s * sj))
+                i = ci + off[k, s, 0]
+                j = cj + off[k, s, 1]
                 if i < 0 or j < 0 or i >= rows or j >= cols:
                     break
                 v = state[i, j]
@@ -302,22 +318,19 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells):
 @njit(cache=True)
 def mark_visible(state, src_i, src_j, n_rays, max_range_cells, out):
     """Set out[i, j] for every cell a ray from one of the source cells reaches within
-    max_range_cells: the view of a sensor there, as far as this map can tell. Rays march in
-    unit steps like observable_unknown and stop at an OCCUPIED cell (not marked) or the
-    window edge; UNKNOWN cells are see-through, since nothing is known to block them."""
+    max_range_cells: the view of a sensor there, as far as this map can tell. Rays march
+    like observable_unknown's and stop at an OCCUPIED cell (not marked) or the window
+    edge; UNKNOWN cells are see-through, since nothing is known to block them."""
     rows, cols = state.shape
-    dtheta = 2.0 * math.pi / n_rays
     steps = int(max_range_cells)
+    off = ray_offsets(n_rays, steps)
     for c in range(src_i.shape[0]):
-        ci = src_i[c] + 0.5
-        cj = src_j[c] + 0.5
+        ci = src_i[c]
+        cj = src_j[c]
         for k in range(n_rays):
-            a = k * dtheta
-            si = math.sin(a)
-            sj = math.cos(a)
             for s in range(0, steps + 1):
-                i = int(math.floor(ci + s * si))
-                j = int(math.floor(cj + s * sj))
+                i = ci + off[k, s, 0]
+                j = cj + off[k, s, 1]
                 if i < 0 or j < 0 or i >= rows or j >= cols:
                     break
                 if state[i, j] == OCCUPIED:

@@ -105,8 +105,8 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells, unknown=0
         for k in range(n_rays):
             a = k * dtheta
             for s in range(1, int(max_range_cells) + 1):
-                i = math.floor(ci + 0.5 + s * math.sin(a))
-                j = math.floor(cj + 0.5 + s * math.cos(a))
+                i = ci + math.floor(0.5 + s * math.sin(a))
+                j = cj + math.floor(0.5 + s * math.cos(a))
                 if not (0 <= i < rows and 0 <= j < cols) or state[i, j] == occupied:
                     break
                 if state[i, j] == unknown:
@@ -123,8 +123,8 @@ def mark_visible(state, src_i, src_j, n_rays, max_range_cells, occupied=2):
         for k in range(n_rays):
             a = k * dtheta
             for s in range(0, int(max_range_cells) + 1):
-                i = math.floor(ci + 0.5 + s * math.sin(a))
-                j = math.floor(cj + 0.5 + s * math.cos(a))
+                i = ci + math.floor(0.5 + s * math.sin(a))
+                j = cj + math.floor(0.5 + s * math.cos(a))
                 if not (0 <= i < rows and 0 <= j < cols) or state[i, j] == occupied:
                     break
                 out[i, j] = True
