@@ -22,7 +22,7 @@ from firmware.local_map import KeyframeStore, LocalMap, bin_scan_by_bearing, dec
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task, TaskProfiler
 from firmware.team import STRATEGIES, Strategy, TeamView
-from firmware.topo_map import TOPO_FIELDS, TopoMap
+from firmware.topo_map import MAX_INFO_VERSION, TOPO_FIELDS, TopoMap
 from hal.bundle import Hal
 from hal.lora import RadioProfile
 from hal.samples import LidarScan
@@ -31,8 +31,9 @@ from hal.samples import LidarScan
 PRIORITY_MOTION = 2
 PRIORITY_STATUS = 3
 PRIORITY_INFO = 1
-# An information-change record is sent when a vertex's e_inf code falls by this much (one
-# code step is 4.4 %, so 8 steps is about a third), or to zero.
+# An information-change record is sent when a vertex's e_inf code moves this far from what
+# this robot last said there (one code step is 4.4 %, so 8 steps is about a third), or falls
+# to zero.
 INFO_CODE_STEP = 8
 
 
@@ -211,7 +212,7 @@ class ExplorerAgent:
             np.add.at(e, nearest, [it.e_bit for it in items])
         return idx, xy, e
 
-    def _publish(self, record: tuple[int, int, int, int, int, int], priority: int) -> None:
+    def _publish(self, record: tuple[int, int, int, int, int, int, int], priority: int) -> None:
         """Own records go into the own map at once and onto the air if the team shares."""
         self.topo.add(record)
         if self.link is not None:
@@ -233,19 +234,30 @@ class ExplorerAgent:
         if self.hal.mesh is not None and self.strategy.shares_dense_map:
             self.hal.mesh.broadcast(encode_keyframe(self.hal.robot_id, kx, ky, ranges, range_max))
         _, _, e = self._vertex_information((x_m, y_m))
-        self._publish((self.hal.robot_id, round(x_m * 100), round(y_m * 100), 0, 1, e_inf_bit_to_code(e[-1])),
+        # Passing a place again: this record speaks for the vertex it will join, so it has to
+        # outrank what this robot said there before.
+        version = 0
+        near = self.topo.nearest(x_m, y_m)
+        if near is not None and math.dist(self.topo.positions()[near], (x_m, y_m)) < self.p.d_build_m:
+            version = min(MAX_INFO_VERSION, int(self.topo.word_of(self.hal.robot_id)[0][near]) + 1)
+        self._publish((self.hal.robot_id, round(x_m * 100), round(y_m * 100), 0, 1, e_inf_bit_to_code(e[-1]), version),
                       PRIORITY_MOTION)
         self._last_vertex_xy = (x_m, y_m)
 
     def _report_information_changes(self) -> None:
-        """A record when the information at a visited vertex has clearly dropped below what
-        the shared map says (a waypoint there was covered). Rises are not sent: the shared
-        map keeps the minimum anyway."""
+        """A record when the information this robot holds at one of its vertices has moved
+        clearly away from what it last said there: down (a waypoint there was covered or
+        handed to a teammate) or up (it saw more from there). Each carries the next revision,
+        so it replaces the robot's earlier word in every map, whatever the arrival order."""
         idx, xy, e = self._vertex_information()
         if not len(idx):
             return
-        current = self.topo.e_inf_codes()[idx]
-        for (x, y), e_bit, old in zip(xy, e, current):
+        revision, said = self.topo.word_of(self.hal.robot_id)
+        for k, (x, y), e_bit in zip(idx, xy, e):
             code = e_inf_bit_to_code(float(e_bit))
-            if code < old and (code == 0 or old - code >= INFO_CODE_STEP):
-                self._publish((self.hal.robot_id, round(x * 100), round(y * 100), 0, 0, code), PRIORITY_INFO)
+            old = int(said[k])
+            if revision[k] >= MAX_INFO_VERSION or code == old:
+                continue
+            if (code == 0 or abs(code - old) >= INFO_CODE_STEP):
+                self._publish((self.hal.robot_id, round(x * 100), round(y * 100), 0, 0, code, int(revision[k]) + 1),
+                              PRIORITY_INFO)

@@ -171,27 +171,31 @@ def chamfer_distances(state):
 
 
 @njit(cache=True)
-def _heap_push(keys, vals, size, key, val):
-    """Binary min-heap on parallel arrays, ordered by (key, val) so ties are reproducible."""
-    i = size
-    keys[i] = key
-    vals[i] = val
+def _sift_up(keys, vals, pos, i):
+    """Move heap entry i up to its place. The heap is ordered by (key, val), so ties between
+    equal costs go to the lower flat index and the result is reproducible."""
+    key = keys[i]
+    val = vals[i]
     while i > 0:
         parent = (i - 1) >> 1
         if keys[parent] < key or (keys[parent] == key and vals[parent] <= val):
             break
         keys[i] = keys[parent]
         vals[i] = vals[parent]
+        pos[vals[i]] = i
         i = parent
     keys[i] = key
     vals[i] = val
-    return size + 1
+    pos[val] = i
 
 
 @njit(cache=True)
-def _heap_pop(keys, vals, size):
-    """Remove the top; returns the new size (the caller read keys[0], vals[0] first)."""
+def _pop_top(keys, vals, pos, size):
+    """Remove the top entry (the caller read keys[0], vals[0] first); returns the new size."""
+    pos[vals[0]] = -2          # settled: never enters the heap again
     size -= 1
+    if size == 0:
+        return 0
     key = keys[size]
     val = vals[size]
     i = 0
@@ -206,9 +210,11 @@ def _heap_pop(keys, vals, size):
             break
         keys[i] = keys[child]
         vals[i] = vals[child]
+        pos[vals[i]] = i
         i = child
     keys[i] = key
     vals[i] = val
+    pos[val] = i
     return size
 
 
@@ -220,28 +226,29 @@ def dijkstra_grid(traversable, cell_cost, start_i, start_j):
     path through narrow places pays for hugging walls (Bayer & Faigl IV-A). Diagonal steps
     may not cut a blocked corner. Returns (cost in cells, inf where unreachable; parent as
     flat index, -1 for the start and unreached cells). The heap orders ties by flat index,
-    so the result is a pure function of the inputs.
+    so the result is a pure function of the inputs. It holds each cell at most once (a
+    better cost moves the cell up in place), which keeps it small on open maps.
     """
     rows, cols = traversable.shape
     dist = np.full((rows, cols), np.inf)
     parent = np.full((rows, cols), -1, np.int64)
     if not traversable[start_i, start_j]:
         return dist, parent
-    # Each cell is pushed at most once per improvement; 8 neighbours bound the pushes.
-    capacity = 8 * int(traversable.sum()) + 1
-    keys = np.empty(capacity, np.float64)
-    vals = np.empty(capacity, np.int64)
-    size = _heap_push(keys, vals, 0, 0.0, start_i * cols + start_j)
+    keys = np.empty(rows * cols, np.float64)
+    vals = np.empty(rows * cols, np.int64)
+    pos = np.full(rows * cols, -1, np.int64)   # heap slot of each cell; -1 never seen, -2 settled
+    keys[0] = 0.0
+    vals[0] = start_i * cols + start_j
+    pos[vals[0]] = 0
+    size = 1
     dist[start_i, start_j] = 0.0
     s2 = math.sqrt(2.0)
     while size > 0:
         dcur = keys[0]
         flat = vals[0]
-        size = _heap_pop(keys, vals, size)
+        size = _pop_top(keys, vals, pos, size)
         i = flat // cols
         j = flat - i * cols
-        if dcur > dist[i, j]:
-            continue
         for di in range(-1, 2):
             for dj in range(-1, 2):
                 if di == 0 and dj == 0:
@@ -258,7 +265,14 @@ def dijkstra_grid(traversable, cell_cost, start_i, start_j):
                 if nd < dist[ni, nj]:
                     dist[ni, nj] = nd
                     parent[ni, nj] = flat
-                    size = _heap_push(keys, vals, size, nd, ni * cols + nj)
+                    nflat = ni * cols + nj
+                    slot = pos[nflat]
+                    if slot == -1:
+                        slot = size
+                        size += 1
+                    keys[slot] = nd
+                    vals[slot] = nflat
+                    _sift_up(keys, vals, pos, slot)
     return dist, parent
 
 

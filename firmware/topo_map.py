@@ -7,9 +7,14 @@ come from Dijkstra over the graph.
 Robots hear records in different orders, lose some and hear others twice, yet two robots
 that hold the same records must plan on the same map. So the map is rebuilt from the SET
 of records: duplicates collapse, and Algorithm 1 folds the records in one canonical order
-(sorted by their wire values). Algorithm 1's "h.e_inf <- t.e_inf" depends on arrival order;
-here the merged e_inf is the minimum over the vertex's records, which equals "the latest"
-whenever information only shrinks as places get observed, and needs no clock.
+(sorted by their wire values). Algorithm 1's "h.e_inf <- t.e_inf" keeps the latest record,
+which depends on arrival order; here each record carries the sender's revision count for
+that vertex instead, so per vertex and sender the highest revision counts (ties: the lower
+e_inf), and the vertex's e_inf is the smallest of its senders' current values: a robot
+that finds nothing left at a place settles it for the team, as the latest record would in
+the paper, while each robot can still raise its own word when it sees more from a place
+than it first reported, which a plain minimum over all records could never express. (The
+largest of the senders' values was tried: stale words kept whole teams travelling.)
 
 Positions are kept in the wire's units (integer cm) so a robot's own records and the copies
 its peers decode are the same values, bit for bit.
@@ -25,10 +30,11 @@ from numba import njit
 from firmware.comms.schema import record_type
 
 # A topo record as on the wire: its values in the order of the schema table's fields
-# (sender_id, x_cm, y_cm, z_cm, presence, e_inf_code).
-TopoRecord = tuple[int, int, int, int, int, int]
+# (sender_id, x_cm, y_cm, z_cm, presence, e_inf_code, info_version).
+TopoRecord = tuple[int, int, int, int, int, int, int]
 TOPO_FIELDS = tuple(f.name for f in record_type("topo").fields)
-assert len(TOPO_FIELDS) == 6, "fold_records reads six values per topo record"
+assert len(TOPO_FIELDS) == 7, "fold_records reads seven values per topo record"
+MAX_INFO_VERSION = (1 << record_type("topo").fields[TOPO_FIELDS.index("info_version")].bits) - 1
 
 _CELL_OFFSET = 1 << 20
 
@@ -40,21 +46,27 @@ def _cell_key(cx, cy):
 
 @njit(cache=True)
 def fold_records(rec, d_build_cm, d_connect_cm):
-    """Algorithm 1 over records in the given order. rec: int64 (n, 6) as TopoRecord.
+    """Algorithm 1 over records in the given order. rec: int64 (n, 7) as TopoRecord.
 
-    Returns vertex positions (cm), id bitmasks (4 x 64 bits per vertex), e_inf codes, and
-    the edges (u, v, length in cm) with u > v. A uniform grid of d_build cells finds the
-    closest vertex: any vertex closer than d_build lies in the 3 x 3 cells around a record.
+    Returns vertex positions (cm), id bitmasks (4 x 64 bits per vertex), e_inf codes, the
+    edges (u, v, length in cm) with u > v, and each sender's latest word per vertex as
+    parallel arrays (vertex, sender, revision, e_inf code). A uniform grid of d_build cells
+    finds the closest vertex: any vertex closer than d_build lies in the 3 x 3 cells around
+    a record.
     """
     n = rec.shape[0]
     vx = np.empty(n, np.int64)
     vy = np.empty(n, np.int64)
     vz = np.empty(n, np.int64)
     ids = np.zeros((n, 4), np.uint64)
-    e = np.empty(n, np.int64)
     nxt = np.full(n, -1, np.int64)
     heads = dict()
     heads[np.int64(-1)] = np.int64(-1)
+    # (vertex * 256 + sender) -> that sender's highest revision there and its e_inf code.
+    latest_version = dict()
+    latest_code = dict()
+    latest_version[np.int64(-1)] = np.int64(-1)
+    latest_code[np.int64(-1)] = np.int64(-1)
     eu = []
     ev = []
     ew = []
@@ -82,35 +94,57 @@ def fold_records(rec, d_build_cm, d_connect_cm):
                         best_d2 = d2
                     v = nxt[v]
         if best >= 0 and math.sqrt(best_d2) < d_build_cm:
-            if rec[r, 4] != 0:
-                ids[best, sender >> 6] |= np.uint64(1) << np.uint64(sender & 63)
-            if rec[r, 5] < e[best]:
-                e[best] = rec[r, 5]
-            continue
-        k = count
-        count += 1
-        vx[k] = x
-        vy[k] = y
-        vz[k] = rec[r, 3]
-        e[k] = rec[r, 5]
+            k = best
+        else:
+            k = count
+            count += 1
+            vx[k] = x
+            vy[k] = y
+            vz[k] = rec[r, 3]
+            for gx in range(cx - reach, cx + reach + 1):
+                for gy in range(cy - reach, cy + reach + 1):
+                    key = _cell_key(gx, gy)
+                    v = heads[key] if key in heads else -1
+                    while v >= 0:
+                        dx = float(vx[v] - x)
+                        dy = float(vy[v] - y)
+                        d = math.sqrt(dx * dx + dy * dy)
+                        if d <= d_connect_cm:
+                            eu.append(k)
+                            ev.append(v)
+                            ew.append(d)
+                        v = nxt[v]
+            key = _cell_key(cx, cy)
+            nxt[k] = heads[key] if key in heads else -1
+            heads[key] = k
         if rec[r, 4] != 0:
             ids[k, sender >> 6] |= np.uint64(1) << np.uint64(sender & 63)
-        for gx in range(cx - reach, cx + reach + 1):
-            for gy in range(cy - reach, cy + reach + 1):
-                key = _cell_key(gx, gy)
-                v = heads[key] if key in heads else -1
-                while v >= 0:
-                    dx = float(vx[v] - x)
-                    dy = float(vy[v] - y)
-                    d = math.sqrt(dx * dx + dy * dy)
-                    if d <= d_connect_cm:
-                        eu.append(k)
-                        ev.append(v)
-                        ew.append(d)
-                    v = nxt[v]
-        key = _cell_key(cx, cy)
-        nxt[k] = heads[key] if key in heads else -1
-        heads[key] = k
+        word = k * 256 + sender
+        version = rec[r, 6]
+        code = rec[r, 5]
+        if word not in latest_version or version > latest_version[word] \
+                or (version == latest_version[word] and code < latest_code[word]):
+            latest_version[word] = version
+            latest_code[word] = code
+    e = np.full(count, 255, np.int64)
+    words = len(latest_version) - 1
+    w_vertex = np.empty(words, np.int64)
+    w_sender = np.empty(words, np.int64)
+    w_version = np.empty(words, np.int64)
+    w_code = np.empty(words, np.int64)
+    i = 0
+    for word, version in latest_version.items():
+        if word < 0:
+            continue
+        code = latest_code[word]
+        v = word // 256
+        w_vertex[i] = v
+        w_sender[i] = word - v * 256
+        w_version[i] = version
+        w_code[i] = code
+        if code < e[v]:
+            e[v] = code
+        i += 1
     m = len(eu)
     edges = np.empty((m, 2), np.int64)
     lengths = np.empty(m, np.float64)
@@ -118,7 +152,8 @@ def fold_records(rec, d_build_cm, d_connect_cm):
         edges[i, 0] = eu[i]
         edges[i, 1] = ev[i]
         lengths[i] = ew[i]
-    return vx[:count].copy(), vy[:count].copy(), vz[:count].copy(), ids[:count].copy(), e[:count].copy(), edges, lengths
+    return (vx[:count].copy(), vy[:count].copy(), vz[:count].copy(), ids[:count].copy(), e, edges, lengths,
+            w_vertex, w_sender, w_version, w_code)
 
 
 @njit(cache=True)
@@ -148,13 +183,17 @@ class TopoMap:
         self.d_build_cm = int(round(d_build_m * 100))
         self.d_connect_cm = int(round(d_connect_m * 100))
         self._records: set[TopoRecord] = set()
-        self._dirty = False
+        # The records in canonical order as one array, and those not merged into it yet:
+        # a rebuild sorts only the new ones and merges, instead of re-sorting every tuple.
+        self._sorted = np.zeros((0, 7), np.int64)
+        self._new: list[TopoRecord] = []
         self._empty()
 
     def _empty(self) -> None:
         self._xy_m = np.zeros((0, 2))
         self._ids = np.zeros((0, 4), np.uint64)
         self._e_code = np.zeros(0, np.int64)
+        self._words = [np.zeros(0, np.int64)] * 4
         self.edges = np.zeros((0, 2), np.int64)
         self._csr = (np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
 
@@ -165,7 +204,7 @@ class TopoMap:
         if record in self._records:
             return False
         self._records.add(record)
-        self._dirty = True
+        self._new.append(record)
         return True
 
     @property
@@ -176,11 +215,15 @@ class TopoMap:
         return frozenset(self._records)
 
     def _ensure_built(self) -> None:
-        if not self._dirty:
+        if not self._new:
             return
-        self._dirty = False
-        rec = np.array(sorted(self._records), np.int64).reshape(-1, 6)
-        vx, vy, _vz, ids, e, edges, lengths = fold_records(rec, self.d_build_cm, self.d_connect_cm)
+        rec = np.concatenate([self._sorted, np.array(self._new, np.int64).reshape(-1, 7)])
+        self._new = []
+        # Lexicographic over the fields, as sorting the tuples would order them.
+        rec = rec[np.lexsort(rec.T[::-1])]
+        self._sorted = rec
+        vx, vy, _vz, ids, e, edges, lengths, *words = fold_records(rec, self.d_build_cm, self.d_connect_cm)
+        self._words = words
         self._xy_m = np.column_stack([vx, vy]).astype(np.float64) / 100.0
         self._ids = ids
         self._e_code = e
@@ -214,6 +257,18 @@ class TopoMap:
         self._ensure_built()
         word = self._ids[:, robot_id >> 6]
         return (word >> np.uint64(robot_id & 63)) & np.uint64(1) == np.uint64(1)
+
+    def word_of(self, robot_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """Per vertex: robot_id's latest revision there (-1: it never sent one) and the
+        e_inf code of that revision (0 where none)."""
+        self._ensure_built()
+        vertex, sender, version, code = self._words
+        revision = np.full(len(self._xy_m), -1, np.int64)
+        value = np.zeros(len(self._xy_m), np.int64)
+        mine = sender == robot_id
+        revision[vertex[mine]] = version[mine]
+        value[vertex[mine]] = code[mine]
+        return revision, value
 
     def visited_by_others(self, robot_id: int) -> np.ndarray:
         """Per vertex: did any robot but robot_id report its presence there?"""

@@ -38,7 +38,7 @@ def test_decode_never_raises(case):
 
 
 def test_field_order_is_msb_first():
-    values = dict(sender_id=0xAB, x_cm=-1, y_cm=0, z_cm=1, presence=1, e_inf_code=0xFF)
+    values = dict(sender_id=0xAB, x_cm=-1, y_cm=0, z_cm=1, presence=1, e_inf_code=0xFF, info_version=0)
     assert encode("topo", values).hex() == "ab" "ffffff" "000000" "000001" "ff" "80"
 
 
@@ -48,11 +48,11 @@ def test_range_errors_name_field_and_range():
     with pytest.raises(ValueError, match=r"pose\.yaw_cdeg = 18001 outside valid range \[-18000, 18000\]"):
         encode("pose", v)
     with pytest.raises(ValueError, match=r"topo\.x_cm = 8388608 outside valid range \[-8388608, 8388607\]"):
-        encode("topo", dict(sender_id=1, x_cm=1 << 23, y_cm=0, z_cm=0, presence=0, e_inf_code=0))
-    with pytest.raises(ValueError, match=r"missing fields \['e_inf_code'\]"):
+        encode("topo", dict(sender_id=1, x_cm=1 << 23, y_cm=0, z_cm=0, presence=0, e_inf_code=0, info_version=0))
+    with pytest.raises(ValueError, match=r"missing fields \['e_inf_code', 'info_version'\]"):
         encode("topo", dict(sender_id=1, x_cm=0, y_cm=0, z_cm=0, presence=0))
     with pytest.raises(ValueError, match="expected an integer"):
-        encode("topo", dict(sender_id=1, x_cm=0.5, y_cm=0, z_cm=0, presence=0, e_inf_code=0))
+        encode("topo", dict(sender_id=1, x_cm=0.5, y_cm=0, z_cm=0, presence=0, e_inf_code=0, info_version=0))
     with pytest.raises(ValueError, match="unknown record type 'nope'"):
         encode("nope", {})
 
@@ -66,9 +66,9 @@ def test_decode_reports_out_of_range_and_padding():
     bad = (word | (0x7FFF << yaw_shift)).to_bytes(12, "big")
     got = decode(pose, bad)
     assert got.reason is Reason.OUT_OF_RANGE and "yaw_cdeg = 32767" in got.detail
-    padded = bytearray(encode("topo", dict(sender_id=1, x_cm=0, y_cm=0, z_cm=0, presence=0, e_inf_code=0)))
+    padded = bytearray(encode("target", dict(sender_id=1, x_cm=0, y_cm=0, path_cost_dm=0, claimed=0, e_inf_code=0)))
     padded[-1] |= 1
-    assert decode("topo", bytes(padded)).reason is Reason.OUT_OF_RANGE
+    assert decode("target", bytes(padded)).reason is Reason.OUT_OF_RANGE
 
 
 def test_saturate_clamps_and_rounds_into_range():

@@ -19,7 +19,7 @@ frames = st.builds(
     lambda s, q, h, recs: encode_frame(s, q, recs, hops_left=h),
     st.integers(0, 255), st.integers(0, 65535), st.integers(0, 15), st.lists(record, min_size=1, max_size=18))
 
-TOPO = dict(sender_id=7, x_cm=100, y_cm=-200, z_cm=3, presence=1, e_inf_code=42)
+TOPO = dict(sender_id=7, x_cm=100, y_cm=-200, z_cm=3, presence=1, e_inf_code=42, info_version=0)
 
 
 @settings(max_examples=200, deadline=None)

@@ -43,7 +43,7 @@ class FakeRadio:
 
 
 def topo(i, sender=1):
-    return dict(sender_id=sender, x_cm=i, y_cm=-i, z_cm=0, presence=1, e_inf_code=i % 256)
+    return dict(sender_id=sender, x_cm=i, y_cm=-i, z_cm=0, presence=1, e_inf_code=i % 256, info_version=0)
 
 
 def pose(sender=1, x=0):

@@ -49,11 +49,12 @@ def test_why_not_dnp_some_2_bit_errors_pass_it():
     assert len(set(s)) < len(s)
 
 
-def test_topo_is_bayer_faigl_table_1():
+def test_topo_is_bayer_faigl_table_1_plus_a_revision_in_the_padding():
     topo = BY_NAME["topo"]
     widths = {f.name: f.bits for f in topo.fields}
-    assert widths == {"sender_id": 8, "x_cm": 24, "y_cm": 24, "z_cm": 24, "presence": 1, "e_inf_code": 8}
-    assert topo.bits_used == 89 and topo.size_bytes == 12 and topo.padding_bits == 7
+    assert widths == {"sender_id": 8, "x_cm": 24, "y_cm": 24, "z_cm": 24, "presence": 1, "e_inf_code": 8,
+                      "info_version": 7}
+    assert topo.bits_used == 96 and topo.size_bytes == 12 and topo.padding_bits == 0
 
 
 def test_every_type_is_tightly_packed_and_within_12_bytes():

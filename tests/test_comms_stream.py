@@ -36,7 +36,7 @@ def test_any_split_yields_the_same_frames(frames, data):
 
 
 def test_byte_at_a_time_equals_whole():
-    frames = [encode_frame(i, i, [("topo", dict(sender_id=i, x_cm=i, y_cm=0, z_cm=0, presence=1, e_inf_code=9))])
+    frames = [encode_frame(i, i, [("topo", dict(sender_id=i, x_cm=i, y_cm=0, z_cm=0, presence=1, e_inf_code=9, info_version=0))])
               for i in range(5)]
     stream = b"".join(frames)
     assert run(stream, list(range(len(stream)))) == run(stream, [])
@@ -56,7 +56,7 @@ def test_garbage_before_frames_is_skipped(garbage, frames, data):
 
 
 def test_corrupted_frame_between_good_ones_costs_only_itself():
-    mk = lambda i: encode_frame(1, i, [("topo", dict(sender_id=1, x_cm=i, y_cm=0, z_cm=0, presence=0, e_inf_code=0))])
+    mk = lambda i: encode_frame(1, i, [("topo", dict(sender_id=1, x_cm=i, y_cm=0, z_cm=0, presence=0, e_inf_code=0, info_version=0))])
     bad = bytearray(mk(2))
     bad[9] ^= 0x10
     stream = mk(1) + bytes(bad) + mk(3)
@@ -68,7 +68,7 @@ def test_corrupted_frame_between_good_ones_costs_only_itself():
 
 
 def test_truncated_tail_is_released_by_flush():
-    f = encode_frame(1, 1, [("topo", dict(sender_id=1, x_cm=0, y_cm=0, z_cm=0, presence=0, e_inf_code=0))])
+    f = encode_frame(1, 1, [("topo", dict(sender_id=1, x_cm=0, y_cm=0, z_cm=0, presence=0, e_inf_code=0, info_version=0))])
     d = Deframer()
     assert d.feed(f + f[:10]) and d.pending_bytes == 10
     assert d.flush() == [] and d.pending_bytes == 0

@@ -36,7 +36,7 @@ def _explorer() -> Explorer:
 
 
 def _report(ex: Explorer, sender: int, x_m: float, y_m: float, e_inf_code: int) -> None:
-    ex.topo.add((sender, round(x_m * 100), round(y_m * 100), 0, 1, e_inf_code))
+    ex.topo.add((sender, round(x_m * 100), round(y_m * 100), 0, 1, e_inf_code, 0))
 
 
 def _apply(ex: Explorer, *waypoints: tuple[float, float]) -> list[tuple[float, float]]:

@@ -8,7 +8,7 @@ from firmware.comms.frame import encode_frame
 from firmware.comms.schema import SCHEMA_FINGERPRINT
 from radio_sim.air_log import COLLIDED, RECEIVED, AirFrame, Reception
 
-TOPO = dict(sender_id=3, x_cm=10, y_cm=-20, z_cm=0, presence=1, e_inf_code=77)
+TOPO = dict(sender_id=3, x_cm=10, y_cm=-20, z_cm=0, presence=1, e_inf_code=77, info_version=0)
 
 
 def frames():

@@ -40,7 +40,7 @@ def _extreme(rt, pick):
 @pytest.mark.skipif(shutil.which("tshark") is None, reason="tshark not installed")
 def test_tshark_decodes_every_field(tmp_path):
     pcap = tmp_path / "t.pcap"
-    topo = dict(sender_id=3, x_cm=-12345, y_cm=800000, z_cm=-7, presence=1, e_inf_code=200)
+    topo = dict(sender_id=3, x_cm=-12345, y_cm=800000, z_cm=-7, presence=1, e_inf_code=200, info_version=0)
     good = encode_frame(3, 4242, [("topo", topo)] * 2 + [("pose", _extreme(RECORD_TYPES[1], "min"))]
                         + [(rt.name, _extreme(rt, "max")) for rt in RECORD_TYPES], hops_left=2)
     bad = bytearray(good)

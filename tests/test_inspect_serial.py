@@ -12,7 +12,7 @@ from host_tools import cli
 
 pytest.importorskip("serial")
 
-TOPO = dict(sender_id=5, x_cm=-12345, y_cm=2, z_cm=3, presence=1, e_inf_code=9)
+TOPO = dict(sender_id=5, x_cm=-12345, y_cm=2, z_cm=3, presence=1, e_inf_code=9, info_version=0)
 
 
 class ScriptedModem(threading.Thread):

@@ -49,7 +49,7 @@ def simulate(prof, n_nodes=3, seconds=120, lose_every=5):
                 link.enqueue("pose", dict(sender_id=i, x_cm=t_ms // 10, y_cm=i, yaw_cdeg=0, speed_cmps=10,
                                           exploring=1, done=0, returning=0, vertex_count=i), key="pose")
             if t_ms % 3000 == 50 * i:
-                link.enqueue("topo", dict(sender_id=i, x_cm=t_ms, y_cm=0, z_cm=0, presence=1, e_inf_code=3))
+                link.enqueue("topo", dict(sender_id=i, x_cm=t_ms, y_cm=0, z_cm=0, presence=1, e_inf_code=3, info_version=0))
             radio.now_us = now
             k = len(radio.out)
             link.service(now, radio)
@@ -114,7 +114,7 @@ def test_rate_and_window_figures():
     prof = profile("eu868-g1")
     a = [AirFrame(t * 1_000_000, t * 1_000_000 + 100_000, 1, prof.freq_hz, 7, 125_000,
                   encode_frame(1, t if t < 5 else t + 2, [("topo", dict(sender_id=1, x_cm=0, y_cm=0, z_cm=0,
-                                                                        presence=0, e_inf_code=0))]), ())
+                                                                        presence=0, e_inf_code=0, info_version=0))]), ())
          for t in range(10)]
     st = sender_stats(a, prof)[1]
     assert st.frames == 10 and st.bytes == 210 and st.airtime_us == 1_000_000

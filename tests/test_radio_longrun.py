@@ -53,7 +53,7 @@ def test_duty_cycle_and_inspector_agree_over_two_hours(name):
             while link.queue_len < 20:   # always more to say than the law allows
                 k += 1
                 link.enqueue("topo", dict(sender_id=i, x_cm=k % 100000, y_cm=i, z_cm=0, presence=1,
-                                          e_inf_code=k % 256))
+                                          e_inf_code=k % 256, info_version=k % 128))
             link.service(clock.t, radio)
         clock.t += TICK_US
         channel.advance_to(clock.t)

@@ -12,28 +12,34 @@ SETTINGS = settings(max_examples=60, deadline=None)
 
 records = st.lists(
     st.tuples(st.integers(0, 200), st.integers(-800, 800), st.integers(-800, 800), st.just(0),
-              st.integers(0, 1), st.integers(0, 255)),
+              st.integers(0, 1), st.integers(0, 255), st.integers(0, 127)),
     min_size=1, max_size=60)
 
 
 def reference_fold(recs, d_build_cm, d_connect_cm):
-    """Algorithm 1 as printed, with a brute-force closest vertex and e_inf = min."""
-    verts = []  # [x, y, ids, e]
+    """Algorithm 1 as printed, with a brute-force closest vertex; e_inf per vertex is the
+    smallest over senders of each sender's highest revision (ties: its lower code)."""
+    verts = []  # [x, y, ids, {sender: (revision, -code)}]
     edges = set()
-    for sender, x, y, _z, presence, e in recs:
+    for sender, x, y, _z, presence, e, revision in recs:
+        h = None
         if verts:
             d = [math.hypot(v[0] - x, v[1] - y) for v in verts]
             h = min(range(len(verts)), key=lambda k: (d[k], k))
-            if d[h] < d_build_cm:
-                if presence:
-                    verts[h][2].add(sender)
-                verts[h][3] = min(verts[h][3], e)
-                continue
-        k = len(verts)
-        for u, v in enumerate(verts):
-            if math.hypot(v[0] - x, v[1] - y) <= d_connect_cm:
-                edges.add((k, u))
-        verts.append([x, y, {sender} if presence else set(), e])
+            if d[h] >= d_build_cm:
+                h = None
+        if h is None:
+            h = len(verts)
+            for u, v in enumerate(verts):
+                if math.hypot(v[0] - x, v[1] - y) <= d_connect_cm:
+                    edges.add((h, u))
+            verts.append([x, y, set(), {}])
+        if presence:
+            verts[h][2].add(sender)
+        words = verts[h][3]
+        words[sender] = max(words.get(sender, (-1, 0)), (revision, -e))
+    for v in verts:
+        v.append(min(-code for _rev, code in v[3].values()))
     return verts, edges
 
 
@@ -41,9 +47,9 @@ def reference_fold(recs, d_build_cm, d_connect_cm):
 @given(records)
 def test_fold_matches_algorithm_1_reference(recs):
     rec = np.array(recs, np.int64)
-    vx, vy, _vz, ids, e, edges, lengths = fold_records(rec, 100, 250)
+    vx, vy, _vz, ids, e, edges, lengths, *_words = fold_records(rec, 100, 250)
     verts, ref_edges = reference_fold(recs, 100, 250)
-    assert [(v[0], v[1], v[3]) for v in verts] == list(zip(vx.tolist(), vy.tolist(), e.tolist()))
+    assert [(v[0], v[1], v[4]) for v in verts] == list(zip(vx.tolist(), vy.tolist(), e.tolist()))
     for k, v in enumerate(verts):
         got = {s for s in range(256) if (int(ids[k, s >> 6]) >> (s & 63)) & 1}
         assert got == v[2]
@@ -66,6 +72,7 @@ def test_map_is_a_function_of_the_record_set(recs, rnd, data):
     assert np.array_equal(a.edges, b.edges)
     for robot in {r[0] for r in recs}:
         assert np.array_equal(a.visited_by(robot), b.visited_by(robot))
+        assert all(np.array_equal(x, y) for x, y in zip(a.word_of(robot), b.word_of(robot)))
     x, y = data.draw(st.floats(-8, 8)), data.draw(st.floats(-8, 8))
     sa, da, _ = a.costs_from(x, y)
     sb, db, _ = b.costs_from(x, y)
@@ -96,14 +103,30 @@ def test_graph_costs_match_networkx(recs, data):
 
 def test_algorithm_1_merges_close_records_and_falls_back_when_disconnected():
     t = TopoMap(d_build_m=1.0, d_connect_m=2.5)
-    t.add((1, 0, 0, 0, 1, 10))
-    t.add((1, 200, 0, 0, 1, 5))
-    t.add((2, 50, 0, 0, 1, 0))      # within d_build of (0, 0): merged, e_inf drops to 0
-    t.add((1, 1000, 0, 0, 1, 0))    # beyond d_connect of everything: an island
+    t.add((1, 0, 0, 0, 1, 10, 0))
+    t.add((1, 200, 0, 0, 1, 5, 0))
+    t.add((2, 50, 0, 0, 1, 0, 0))   # within d_build of (0, 0): merged; robot 2 saw nothing left there
+    t.add((1, 1000, 0, 0, 1, 0, 0))  # beyond d_connect of everything: an island
     assert len(t) == 3
     assert t.visited_by(2).tolist() == [True, False, False]
     assert t.e_inf_codes().tolist() == [0, 5, 0]
+    assert [a.tolist() for a in t.word_of(2)] == [[0, -1, -1], [0, 0, 0]]
     src, dist, _ = t.costs_from(0.1, 0.0)
     assert src == 0 and dist[1] == 2.0 and math.isinf(dist[2])
     cost, via = t.cost_to(dist, 10.0, 0.0)
     assert via == 1 and cost == 2.0 + 8.0
+
+
+def test_a_later_revision_replaces_the_senders_word_whether_it_falls_or_rises():
+    t = TopoMap(d_build_m=1.0, d_connect_m=2.5)
+    t.add((1, 0, 0, 0, 1, 200, 0))
+    t.add((1, 0, 0, 0, 0, 0, 1))     # covered: falls to 0
+    assert t.e_inf_codes().tolist() == [0]
+    t.add((1, 30, 0, 0, 1, 150, 2))  # came back and saw more from there: rises again
+    assert t.e_inf_codes().tolist() == [150]
+    t.add((1, 0, 0, 0, 0, 90, 2))    # the same revision twice (a protocol slip): the lower code
+    assert t.e_inf_codes().tolist() == [90]
+    assert [a.tolist() for a in t.word_of(1)] == [[2], [90]]
+    t.add((3, 20, 0, 0, 0, 0, 7))    # another robot finds nothing left: it does not replace robot 1's word,
+    assert t.e_inf_codes().tolist() == [0]   # but the vertex takes the smaller of the two
+    assert [a.tolist() for a in t.word_of(1)] == [[2], [90]]

@@ -128,8 +128,11 @@ RECORD_TYPES: tuple[RecordType, ...] = (
             SENDER, _pos("x"), _pos("y"), _pos("z"),
             Field("presence", 1, unit="bool", doc="sender was at p (Table I 'presence of ID at p')"),
             E_INF,
+            Field("info_version", 7, unit="revisions", doc="how often the sender revised e_inf at this vertex, "
+                  "saturating at 127; the sender's highest revision counts"),
         ),
-        doc="Topological map vertex, Bayer & Faigl Table I (8+72+1+8 = 89 bits, padded to 12 B).",
+        doc="Topological map vertex, Bayer & Faigl Table I (8+72+1+8 = 89 bits), plus a 7-bit revision in "
+            "what was padding so e_inf can rise again without a clock (12 B).",
     ),
     RecordType(
         2, "pose", 12,
@@ -181,7 +184,7 @@ def check_table(types: tuple[RecordType, ...]) -> None:
 
 
 check_table(RECORD_TYPES)
-assert BY_NAME["topo"].bits_used == 89 and BY_NAME["topo"].size_bytes == 12  # Table I
+assert BY_NAME["topo"].bits_used == 96 and BY_NAME["topo"].size_bytes == 12  # Table I + revision
 
 
 def fingerprint(types: tuple[RecordType, ...] = RECORD_TYPES, version: int = FRAME_VERSION) -> int:
