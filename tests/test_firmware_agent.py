@@ -80,3 +80,21 @@ def test_a_robot_that_cannot_move_marks_the_obstacle_drops_targets_and_stops():
     e = agent.explorer
     assert e.dropped_stalled + e.dropped_unreachable >= 1
     assert agent.done, "targets that cannot be reached must be dropped for good, not retried forever"
+
+
+def test_information_at_a_vertex_falls_and_rises_again_with_a_new_revision_each_time():
+    """A robot's word about one of its vertices is replaced, not min-ed: the shared map
+    follows it down when a waypoint there is covered and up when a new one appears."""
+    from firmware.waypoints import Waypoint
+    agent = ExplorerAgent(ScriptedHal(np.full(360, 3.0)).hal())
+    agent.setup()
+    agent.topo.add((0, 0, 0, 0, 1, 200, 0))           # the robot's own vertex at the origin
+    agent.topo.add((0, 500, 0, 0, 1, 0, 0))           # and one 5 m away, with nothing left
+    waypoints = agent.explorer.waypoints
+    steps = [([], 0), ([Waypoint(0.5, 0.0, 5000.0)], 197), ([Waypoint(0.5, 0.0, 5300.0)], 197), ([], 0)]
+    for revision, (items, code) in enumerate(steps, start=1):
+        waypoints.items = items
+        agent._report_information_changes()
+        assert agent.topo.e_inf_codes().tolist() == [code, 0]
+    # A 6 % change is below the step that is worth a record: three revisions, not four.
+    assert [a.tolist() for a in agent.topo.word_of(0)] == [[3, 0], [0, 0]]
