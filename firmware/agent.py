@@ -258,6 +258,6 @@ class ExplorerAgent:
             old = int(said[k])
             if revision[k] >= MAX_INFO_VERSION or code == old:
                 continue
-            if (code == 0 or abs(code - old) >= INFO_CODE_STEP):
+            if code == 0 or abs(code - old) >= INFO_CODE_STEP:
                 self._publish((self.hal.robot_id, round(x * 100), round(y * 100), 0, 0, code, int(revision[k]) + 1),
                               PRIORITY_INFO)
