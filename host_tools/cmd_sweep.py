@@ -11,7 +11,8 @@ from pathlib import Path
 from firmware.team import STRATEGIES
 from hal.lora import PROFILES
 from host_tools.progress import progress_bar
-from host_tools.sweep import PARTIAL_NAME, SweepSpec, load_partial, markdown, run_local, run_ray, save, trial_key
+from host_tools.sweep import (PARTIAL_NAME, SweepSpec, code_fingerprint, load_partial, markdown, run_local, run_ray,
+                               save, trial_key)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -31,7 +32,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("out/sweep"), help="where tables and figures go")
     p.add_argument("--resume", action="store_true",
                    help=f"keep the trials an interrupted run of the same sweep finished (OUT/{PARTIAL_NAME}) "
-                        "and run only the rest; meant for the same code, which it does not check")
+                        "with the same code (firmware, HAL, world, radio, mission) and run only the rest")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -45,14 +46,19 @@ def main(args: argparse.Namespace) -> int:
     try:
         wanted = {trial_key(c) for c in trials}
         kept = load_partial(args.out) if args.resume else []
-        earlier = [r for r in kept if trial_key(r) in wanted]
+        code = code_fingerprint()
+        earlier = [r for r in kept if trial_key(r) in wanted and r.get("code_sha256") == code]
     except (ValueError, OSError) as exc:
         print(f"lorascout sweep: {exc}", file=sys.stderr)
         return 2
     done_keys = {trial_key(r) for r in earlier}
     todo = [c for c in trials if trial_key(c) not in done_keys]
-    if earlier:
-        print(f"resuming: {len(earlier)} trials done earlier, {len(todo)} to run", file=sys.stderr)
+    other_code = sum(1 for r in kept if trial_key(r) in wanted and r.get("code_sha256") != code)
+    if args.resume:
+        # Trials of other code stay in the file (nothing is thrown away) but count for nothing.
+        print(f"resuming: {len(earlier)} trials done earlier, {len(todo)} to run"
+              + (f" ({other_code} earlier trials ran other code and are run again)" if other_code else ""),
+              file=sys.stderr)
     args.out.mkdir(parents=True, exist_ok=True)
     bar = progress_bar(len(todo), "sweep", "trial", args.quiet)
     # Each finished trial goes to disk at once: an interrupted sweep loses only what ran.

@@ -4,6 +4,7 @@ packet size, bandwidth and robots per scheme) and their path figures (Figs. 8 an
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import statistics
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -47,10 +48,29 @@ class SweepSpec:
                 for radio, s in grid for m in self.maps for k in range(self.seeds)]
 
 
+# The code whose behaviour a trial measures: the firmware, the simulated hardware and world,
+# the radio channel and the mission harness. Host-side reporting is left out, so a change to
+# how tables are drawn does not throw finished trials away.
+_MEASURED_CODE = ("firmware", "hal", "world_sim", "radio_sim", "host_tools/mission.py")
+
+
+def code_fingerprint(root: Path = Path(__file__).resolve().parents[1]) -> str:
+    """SHA-256 over the measured code's Python sources (paths and contents, in path order)."""
+    files: list[Path] = []
+    for name in _MEASURED_CODE:
+        p = root / name
+        files += sorted(p.rglob("*.py")) if p.is_dir() else [p]
+    digest = hashlib.sha256()
+    for f in files:
+        digest.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
 def run_trial(cfg: MissionConfig) -> dict:
     """One mission, reduced to what the tables and figures need (picklable for workers)."""
     r = run_mission(cfg)
     report = r.to_json()
+    report["code_sha256"] = code_fingerprint()
     report["map_spec"] = cfg.map_spec
     report["max_sim_s"] = cfg.max_sim_s
     report["paths_xy"] = [t[::PATH_DECIMATION, :2].round(2).tolist() for t in r.trajectories]

@@ -81,6 +81,16 @@ def test_an_interrupted_sweep_resumes_where_it_stopped(tmp_path, capsys):
     assert sorted(r.split(",")[1] for r in rows) == ["independent", "minpos"]
     kept = [json.loads(line) for line in partial.read_text().splitlines()]
     assert len(kept) == 2 and kept[0]["trajectory_sha256"] == first["trajectory_sha256"]
+    # A trial that ran other code does not count: it is run again, and kept in the file.
+    stale = dict(first, code_sha256="0" * 64)
+    partial.write_text(json.dumps(stale) + "\n" + full[1] + "\n")
+    capsys.readouterr()
+    assert main(argv + ["--resume"]) == 0
+    assert "resuming: 1 trials done earlier, 1 to run (1 earlier trials ran other code and are run again)" \
+        in capsys.readouterr().err
+    lines = [json.loads(line) for line in partial.read_text().splitlines()]
+    assert len(lines) == 3 and lines[0]["code_sha256"] == "0" * 64
+    assert lines[2]["trajectory_sha256"] == first["trajectory_sha256"]
     # A damaged line that is not the last is an error naming the file and line.
     partial.write_text("{not json\n" + full[0] + "\n")
     assert main(argv + ["--resume"]) == 2
