@@ -183,9 +183,9 @@ class TopoMap:
         self.d_build_cm = int(round(d_build_m * 100))
         self.d_connect_cm = int(round(d_connect_m * 100))
         self._records: set[TopoRecord] = set()
-        # The records in canonical order as one array, and those not merged into it yet:
-        # a rebuild sorts only the new ones and merges, instead of re-sorting every tuple.
-        self._sorted = np.zeros((0, 7), np.int64)
+        # The records in canonical order as one array, and those not in it yet: a rebuild
+        # appends the new ones and sorts in numpy instead of sorting Python tuples.
+        self._sorted = np.zeros((0, len(TOPO_FIELDS)), np.int64)
         self._new: list[TopoRecord] = []
         self._empty()
 
@@ -217,7 +217,7 @@ class TopoMap:
     def _ensure_built(self) -> None:
         if not self._new:
             return
-        rec = np.concatenate([self._sorted, np.array(self._new, np.int64).reshape(-1, 7)])
+        rec = np.concatenate([self._sorted, np.array(self._new, np.int64).reshape(-1, len(TOPO_FIELDS))])
         self._new = []
         # Lexicographic over the fields, as sorting the tuples would order them.
         rec = rec[np.lexsort(rec.T[::-1])]

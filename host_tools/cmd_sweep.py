@@ -66,6 +66,9 @@ def main(args: argparse.Namespace) -> int:
         for report in kept:            # rewritten whole: a line cut short is gone, not appended to
             partial.write(json.dumps(report, sort_keys=True) + "\n")
         def finished(report: dict) -> None:
+            # Stamped with the code read once at the start: the workers run that code, whatever
+            # the files say by the time a trial ends.
+            report["code_sha256"] = code
             partial.write(json.dumps(report, sort_keys=True) + "\n")
             partial.flush()
             bar.update(1)

@@ -70,7 +70,6 @@ def run_trial(cfg: MissionConfig) -> dict:
     """One mission, reduced to what the tables and figures need (picklable for workers)."""
     r = run_mission(cfg)
     report = r.to_json()
-    report["code_sha256"] = code_fingerprint()
     report["map_spec"] = cfg.map_spec
     report["max_sim_s"] = cfg.max_sim_s
     report["paths_xy"] = [t[::PATH_DECIMATION, :2].round(2).tolist() for t in r.trajectories]
