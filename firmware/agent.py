@@ -181,6 +181,7 @@ class ExplorerAgent:
         self._last_plan_us = now_us
         plan = self.explorer.plan(pose.x_m, pose.y_m, now_us)
         self._report_information_changes()
+        self._settle_team_places()
         if plan.done:
             self.follower.clear()
             self.hal.drive.command(0.0, 0.0)
@@ -261,3 +262,28 @@ class ExplorerAgent:
             if code == 0 or abs(code - old) >= INFO_CODE_STEP:
                 self._publish((self.hal.robot_id, round(x * 100), round(y * 100), 0, 0, code, int(revision[k]) + 1),
                               PRIORITY_INFO)
+
+    def _settle_team_places(self) -> None:
+        """A teammate's place that promised information (e_inf > 0) but where this robot's own
+        map shows none, or that this robot reached, gets this robot's word: the information it
+        holds there itself, usually none. A vertex takes the smallest of its senders' words,
+        so one robot's "nothing here" spares the rest of the team the trip. Without it, a
+        stale e_inf (its sender still holds a waypoint that teammates covered) draws every
+        robot there in turn."""
+        places = self.explorer.team_places_emptied
+        self.explorer.team_places_emptied = []
+        if not places:
+            return
+        xy = self.topo.positions()
+        revision, said = self.topo.word_of(self.hal.robot_id)
+        for x, y in places:
+            k = self.topo.nearest(x, y)
+            if k is None or math.dist(xy[k], (x, y)) > 0.01 or revision[k] >= MAX_INFO_VERSION:
+                continue
+            code = e_inf_bit_to_code(float(self._vertex_information((x, y))[2][-1]))
+            if revision[k] >= 0 and (code == said[k] or (code != 0 and abs(code - said[k]) < INFO_CODE_STEP)):
+                continue   # already said, or too close to what was said to be worth a record
+            self._publish((self.hal.robot_id, round(x * 100), round(y * 100), 0, 0, code, int(revision[k]) + 1),
+                          PRIORITY_INFO)
+            revision[k] += 1
+            said[k] = code

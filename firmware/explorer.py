@@ -96,6 +96,9 @@ class Explorer:
         self.dropped_by_presence = 0
         self.stale_team_targets = 0
         self.reached = 0
+        # Team places (W_inf vertices, metres) this robot found nothing at since the agent
+        # last collected them: stale in its own map, or reached. Its word there settles them.
+        self.team_places_emptied: list[tuple[float, float]] = []
         self._strikes: dict[tuple[float, float], int] = {}
         # Edges of the shared map that this robot's own map shows crossing a wall.
         self.blocked_edges: set[tuple[tuple[int, int], tuple[int, int]]] = set()
@@ -134,6 +137,8 @@ class Explorer:
         if self.target is not None and math.hypot(self.target.x_m - x_m, self.target.y_m - y_m) < p.waypoint_reached_m:
             self.waypoints.ban(self.target.x_m, self.target.y_m)
             self.reached += 1
+            if self.target.from_team:
+                self.team_places_emptied.append((self.target.x_m, self.target.y_m))
             self.target = None
 
         topo_src, topo_dist, topo_parent = self.topo.costs_from(x_m, y_m, frozenset(self.blocked_edges))
@@ -202,6 +207,7 @@ class Explorer:
                                                        2.0 * self.p.d_cam_m / self.p.resolution_m)
                     keep[inside] = cells * self.p.entropy_per_cell_bit >= self.p.min_cluster_entropy_bit
                 self.stale_team_targets += int((~keep).sum())
+                self.team_places_emptied.extend((float(xy[k, 0]), float(xy[k, 1])) for k in ks[~keep])
                 out.extend(_Candidate(float(xy[k, 0]), float(xy[k, 1]), 0.0, True) for k in ks[keep])
         return out
 
@@ -209,19 +215,24 @@ class Explorer:
         """Bayer & Faigl: a waypoint is removed when another robot reported its presence
         closer than d_cam. Taken literally that cancels what nobody looked at (robots leaving
         a common staging area cancel each other's waypoints; a robot passing the door of a
-        room cancels the room), so a report counts here only if
-        - it comes from a place the other robot has finished with (e_inf 0 there: none of
-          its own waypoints is left around it) and this robot has not visited itself;
-        - where the local map holds both ends, no wall stands between it and the waypoint;
-        - and what stays unseen around the waypoint is small: the cells in line of sight
-          within d_cam of every place others reported (as far as our map can tell: our known
-          walls block the view, unknown cells do not) are taken as seen, and if the waypoint
-          still has presence_keep_bit of information beyond them, it stays."""
+        room cancels the room), so a report only raises the question, and what the others
+        could have seen answers it:
+        - the report comes from a place this robot has not visited itself and, where the
+          local map holds both ends, no wall stands between it and the waypoint;
+        - the cells in line of sight within d_cam of every place others reported (as far as
+          our map can tell: our known walls block the view, unknown cells do not) are taken
+          as seen, and if the waypoint still has presence_keep_bit of information beyond
+          them, it stays.
+        Whether the teammate still holds information at its place does not matter: what it
+        saw from there is seen, and what it has left is its own waypoint, shared as e_inf.
+        (Counting only places with e_inf 0 left robots re-exploring what teammates had seen
+        whenever those still had anything nearby: on maze_b, MinPos drove 1.3 times as far as
+        with dense maps over ten seeds.)"""
         if not len(self.topo) or not self.waypoints.items:
             return
         xy = self.topo.positions()
         only_others = self.topo.visited_by_others(self.team.robot_id) & ~self.topo.visited_by(self.team.robot_id)
-        others = np.nonzero(only_others & (self.topo.e_inf_codes() == 0))[0]
+        others = np.nonzero(only_others)[0]
         if len(others) == 0:
             return
         reported = []   # (waypoint, i, j): waypoints with a report that may cancel them
@@ -244,10 +255,10 @@ class Explorer:
             else:
                 keep.append(w)
         if reported:
-            # Everything the others saw counts, not only from the finished places. A place more
-            # than 2 d_cam from every such waypoint sees nothing the waypoint would (1 m spare
-            # for cell rounding), so it is left out: the same result, much less ray casting.
-            places = np.nonzero(only_others)[0]
+            # A place more than 2 d_cam from every such waypoint sees nothing the waypoint
+            # would (1 m spare for cell rounding), so it is left out: the same result, much
+            # less ray casting.
+            places = others
             wxy = np.array([(w.x_m, w.y_m) for w, *_ in reported])
             reach2 = (2.0 * self.p.d_cam_m + 1.0) ** 2
             d2 = ((xy[places, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)

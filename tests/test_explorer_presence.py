@@ -45,19 +45,25 @@ def _apply(ex: Explorer, *waypoints: tuple[float, float]) -> list[tuple[float, f
     return [(w.x_m, w.y_m) for w in ex.waypoints.items]
 
 
-def test_a_waypoint_a_teammate_finished_with_in_plain_view_is_dropped():
+def test_a_waypoint_in_a_teammates_plain_view_is_dropped():
     ex = _explorer()
     _report(ex, OTHER, 33.0, 20.0, 0)        # stood near the open end, nothing left there
     assert _apply(ex, (30.0, 20.0)) == []
     assert ex.dropped_by_presence == 1
 
 
-@pytest.mark.parametrize("why", ["information left", "visited by me too", "no report near"])
-def test_a_report_counts_only_from_a_finished_place_i_did_not_visit(why):
+def test_a_teammate_still_busy_nearby_cancels_what_it_saw_too():
+    """The teammate still holds information at that place (e_inf > 0): what it saw from
+    there is seen all the same; what it has left is its own waypoint, shared as W_inf."""
     ex = _explorer()
-    if why == "information left":
-        _report(ex, OTHER, 33.0, 20.0, 40)
-    elif why == "visited by me too":
+    _report(ex, OTHER, 33.0, 20.0, 40)
+    assert _apply(ex, (30.0, 20.0)) == []
+
+
+@pytest.mark.parametrize("why", ["visited by me too", "no report near"])
+def test_a_report_counts_only_from_a_place_i_did_not_visit_within_d_cam(why):
+    ex = _explorer()
+    if why == "visited by me too":
         _report(ex, OTHER, 33.0, 20.0, 0)
         _report(ex, ME, 33.0, 20.0, 0)
     else:

@@ -99,3 +99,22 @@ def test_information_at_a_vertex_falls_and_rises_again_with_a_new_revision_each_
         agent._report_information_changes()
         assert agent.topo.e_inf_codes().tolist() == [code, 0]
         assert [a.tolist() for a in agent.topo.word_of(0)] == [[revision, 0], [code, 0]]
+
+
+def test_a_teammate_place_this_robot_sees_empty_is_settled_for_the_team():
+    """A teammate's vertex that still promises information, inside a room this robot has seen
+    whole, gets this robot's word "nothing here": the vertex's e_inf falls to zero for every
+    map that hears it, so nobody else drives there for nothing."""
+    fake = ScriptedHal(np.full(360, 3.0))
+    agent = ExplorerAgent(fake.hal())
+    agent.setup()
+    agent.topo.add((1, 100, 0, 0, 1, 200, 0))           # teammate 1 was 1 m away, expecting a lot
+    agent.topo.add((2, 5000, 0, 0, 1, 180, 0))          # teammate 2, 50 m away: beyond our map
+    while fake.t_us < 30e6:
+        agent.tick()
+        fake.t_us += 50_000
+    assert (0, 100, 0, 0, 0, 0, 0) in agent.topo.records()
+    code_at = {tuple(np.round(xy, 2)): int(c) for xy, c in zip(agent.topo.positions(), agent.topo.e_inf_codes())}
+    assert code_at[(1.0, 0.0)] == 0
+    assert code_at[(50.0, 0.0)] == 180, "a place our map does not hold keeps its sender's word"
+    assert not any(r[0] == 0 and r[1] == 5000 for r in agent.topo.records())
