@@ -26,12 +26,13 @@ from typing import Any
 
 from firmware.comms.codec import REASONS, Reason
 from firmware.comms.frame import SEQ_MODULUS, decode_frame, seq_newer
+from firmware.comms.link import RATE_WINDOW_US
 from firmware.comms.schema import BY_NAME, SCHEMA_FINGERPRINT, markdown_table
 from hal.lora import PROFILES, RadioProfile
 from radio_sim.air_log import FATES, RECEIVED, AirFrame, Reception
 
 UNKNOWN_SENDER = 255           # serial mode: sender of a frame whose header cannot be read
-PEAK_WINDOW_US = 10_000_000    # DESIGN.md: peak bytes/s over a sliding 10 s window
+PEAK_WINDOW_US = RATE_WINDOW_US   # DESIGN.md: peak bytes/s over a sliding 10 s window, the cap's window
 
 # ETSI EN 300 220-2 / ERC Rec 70-03 sub-bands: (low Hz, high Hz, name, duty cycle)
 EU868_SUB_BANDS = (

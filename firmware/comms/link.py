@@ -12,8 +12,9 @@ Per `service(now_us, radio)` call:
    long enough: build one frame (relays first, else the
    highest-priority records that fit `profile.max_payload_bytes`, grouped by type), and send
    it only if (a) the sub-band airtime budget holds in the duty-cycle window ending when this
-   frame would end (the worst window, see `_duty_cycle_ok`) and (b) the optional byte-rate
-   token bucket has the bytes. Otherwise it waits, and the reason is counted.
+   frame would end (the worst window, see `_duty_cycle_ok`) and (b) with a byte-rate cap,
+   the bytes sent in the last RATE_WINDOW_US plus this frame stay within cap x window.
+   Otherwise it waits, and the reason is counted.
 
 Counters (`counters`, all present from the start; see counter_names):
     sent.frames / sent.bytes / sent.records   everything this radio put on the air (relays too;
@@ -46,6 +47,7 @@ from hal.lora import RadioProfile
 from hal.samples import RadioRxFrame, RadioTxDone
 
 DEDUP_WINDOW = 64
+RATE_WINDOW_US = 10_000_000   # a byte-rate cap holds over every window this long (DESIGN.md's peak window)
 TDMA_GUARD_US = 20_000   # idle time at the end of each slot: clock offset and modem turnaround
 
 
@@ -117,15 +119,20 @@ class LinkLayer:
         self.queue_limit = queue_limit
         self.relay_queue_limit = relay_queue_limit
         self.tdma = tdma
-        self.max_frame_bytes = min(profile.max_payload_bytes, MAX_FRAME_BYTES)
         cap = profile.byte_rate_cap_Bps if byte_rate_cap_Bps is None else byte_rate_cap_Bps
         self._rate_Bps: Fraction | None = (
             None if cap is None or cap == float("inf") else Fraction(cap))
         if self._rate_Bps is not None and self._rate_Bps <= 0:
             raise ValueError(f"byte_rate_cap_Bps must be > 0, got {cap}")
-        self._bucket_cap = Fraction(self.max_frame_bytes)   # one full frame of burst
-        self._tokens = self._bucket_cap
-        self._tokens_at_us: int | None = None
+        # The cap holds over every window of RATE_WINDOW_US, not just on average: a token
+        # bucket lets a frame of burst through on top (105 B/s over 10 s at a 100 B/s cap).
+        self._rate_window_bytes = (None if self._rate_Bps is None
+                                   else int(self._rate_Bps * RATE_WINDOW_US / 1_000_000))
+        self._sent_log: deque[tuple[int, int]] = deque()   # own (start_us, bytes) in the window
+        self._sent_log_bytes = 0
+        # A frame larger than the cap's window could never go.
+        self.max_frame_bytes = min(profile.max_payload_bytes, MAX_FRAME_BYTES,
+                                   self._rate_window_bytes or MAX_FRAME_BYTES)
         self._budget_us = (None if profile.duty_cycle is None
                            else round(profile.duty_cycle * profile.duty_cycle_window_us))
         self._tx_log: deque[tuple[int, int]] = deque()   # own (start_us, end_us), this sub-band
@@ -199,7 +206,6 @@ class LinkLayer:
                 self._on_frame(event.payload)
             elif isinstance(event, RadioTxDone):
                 self._counters["tx_done.ok" if event.ok else "tx_done.failed"] += 1
-        self._refill(now_us)
         if not self._queue and not self._relay:
             return
         if radio.busy():
@@ -220,7 +226,7 @@ class LinkLayer:
         if not self._duty_cycle_ok(now_us, airtime_us):
             self._counters["deferred.duty_cycle"] += 1
             return
-        if self._rate_Bps is not None and self._tokens < len(frame):
+        if not self._rate_ok(now_us, len(frame)):
             self._counters["deferred.rate_cap"] += 1
             return
         if not radio.transmit(frame):
@@ -234,8 +240,9 @@ class LinkLayer:
             self._queue = [e for e in self._queue if id(e) not in taken_ids]
             self._seq = (self._seq + 1) % SEQ_MODULUS
             self._counters["sent.records"] += len(taken)
-        if self._rate_Bps is not None:
-            self._tokens -= len(frame)
+        if self._rate_window_bytes is not None:
+            self._sent_log.append((now_us, len(frame)))
+            self._sent_log_bytes += len(frame)
         self._tx_log.append((now_us, now_us + airtime_us))
         self._log_total_us += airtime_us
         self._counters["sent.frames"] += 1
@@ -291,14 +298,16 @@ class LinkLayer:
             self._log_total_us -= e - s
         return self._window_use_us(now_us + airtime_us) + airtime_us <= self._budget_us
 
-    def _refill(self, now_us: int) -> None:
-        if self._rate_Bps is None:
-            return
-        if self._tokens_at_us is not None and now_us > self._tokens_at_us:
-            gained = self._rate_Bps * (now_us - self._tokens_at_us) / 1_000_000
-            self._tokens = min(self._bucket_cap, self._tokens + gained)
-        if self._tokens_at_us is None or now_us > self._tokens_at_us:
-            self._tokens_at_us = now_us
+    def _rate_ok(self, now_us: int, frame_bytes: int) -> bool:
+        """Would a frame starting now keep the bytes started in (now - window, now] within
+        the cap? That window is the worst one containing this frame (later windows hold
+        fewer of the earlier frames), so checking it is exact."""
+        if self._rate_window_bytes is None:
+            return True
+        horizon = now_us - RATE_WINDOW_US
+        while self._sent_log and self._sent_log[0][0] <= horizon:
+            self._sent_log_bytes -= self._sent_log.popleft()[1]
+        return self._sent_log_bytes + frame_bytes <= self._rate_window_bytes
 
     def _is_duplicate(self, sender: int, seq: int) -> bool:
         """Check and mark (sender, seq). A sequence number far behind the window means the
@@ -339,7 +348,9 @@ class LinkLayer:
         for name, values in f.records:
             self._rx.append((f.sender_id, name, values))
         if self.relay_hop_limit > 0 and f.hops_left > 0:
-            if len(self._relay) >= self.relay_queue_limit:
+            if len(payload) > self.max_frame_bytes:
+                self._counters["dropped.too_large"] += 1     # more than our rate cap ever lets out
+            elif len(self._relay) >= self.relay_queue_limit:
                 self._counters["dropped.relay_queue_full"] += 1
             else:
                 self._relay.append(with_hops(bytes(payload), f.hops_left - 1, min(MAX_HOPS, f.hops_taken + 1)))
