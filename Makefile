@@ -29,12 +29,12 @@ MAPS := ../shared/maps/maze_a.yaml ../shared/maps/maze_b.yaml ../shared/maps/int
 # The README's team tables: 5 robots, the four maps, every strategy, two seeds, and Greedy and
 # MinPos again on the EU 10 % band (about 1 h on 2 cores). The tables go into README.md.
 sweep-readme: $(STAMP)
-	$(BIN)/lorascout sweep --maps $(MAPS) --robots 5 --seeds 2 --also-radio eu868-g3 --out docs/sweep
+	$(BIN)/lorascout sweep --maps $(MAPS) --robots 5 --seeds 2 --also-radio eu868-g3 --out docs/sweep --resume
 	$(BIN)/python -m host_tools.readme_sync docs/sweep/tables.md README.md
 
 # Issue 4's acceptance grid: the same with 10 seeds (hours on 2 cores).
 sweep: $(STAMP)
-	$(BIN)/lorascout sweep --maps $(MAPS) --robots 5 --seeds 10 --also-radio eu868-g3 --out out/sweep
+	$(BIN)/lorascout sweep --maps $(MAPS) --robots 5 --seeds 10 --also-radio eu868-g3 --out out/sweep --resume
 
 clean:
 	rm -rf $(VENV) build *.egg-info

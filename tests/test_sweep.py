@@ -95,3 +95,9 @@ def test_an_interrupted_sweep_resumes_where_it_stopped(tmp_path, capsys):
     partial.write_text("{not json\n" + full[0] + "\n")
     assert main(argv + ["--resume"]) == 2
     assert f"{partial}:1: not a trial report" in capsys.readouterr().err
+
+
+def test_lowest_coverage_is_rounded_down_so_a_bound_is_never_shown_met_when_missed():
+    from host_tools.sweep import coverage_floor
+    assert coverage_floor(0.989962) == 0.9899
+    assert coverage_floor(0.99) == 0.99 and coverage_floor(0.57) == 0.57 and coverage_floor(1.0) == 1.0
