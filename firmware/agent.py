@@ -255,13 +255,7 @@ class ExplorerAgent:
             return
         revision, said = self.topo.word_of(self.hal.robot_id)
         for k, (x, y), e_bit in zip(idx, xy, e):
-            code = e_inf_bit_to_code(float(e_bit))
-            old = int(said[k])
-            if revision[k] >= MAX_INFO_VERSION or code == old:
-                continue
-            if code == 0 or abs(code - old) >= INFO_CODE_STEP:
-                self._publish((self.hal.robot_id, round(x * 100), round(y * 100), 0, 0, code, int(revision[k]) + 1),
-                              PRIORITY_INFO)
+            self._say_information(x, y, e_inf_bit_to_code(float(e_bit)), int(revision[k]), int(said[k]))
 
     def _settle_team_places(self) -> None:
         """A teammate's place that promised information (e_inf > 0) but where this robot's own
@@ -278,12 +272,21 @@ class ExplorerAgent:
         revision, said = self.topo.word_of(self.hal.robot_id)
         for x, y in places:
             k = self.topo.nearest(x, y)
-            if k is None or math.dist(xy[k], (x, y)) > 0.01 or revision[k] >= MAX_INFO_VERSION:
+            if k is None or math.dist(xy[k], (x, y)) > 0.01:
                 continue
             code = e_inf_bit_to_code(float(self._vertex_information((x, y))[2][-1]))
-            if revision[k] >= 0 and (code == said[k] or (code != 0 and abs(code - said[k]) < INFO_CODE_STEP)):
-                continue   # already said, or too close to what was said to be worth a record
-            self._publish((self.hal.robot_id, round(x * 100), round(y * 100), 0, 0, code, int(revision[k]) + 1),
-                          PRIORITY_INFO)
-            revision[k] += 1
-            said[k] = code
+            if self._say_information(x, y, code, int(revision[k]), int(said[k])):
+                revision[k] += 1    # the same place may come twice in one batch
+                said[k] = code
+
+    def _say_information(self, x_m: float, y_m: float, code: int, revision: int, said: int) -> bool:
+        """Send this robot's word `code` for the vertex at (x, y), with the next revision, if
+        it is worth a record: the robot has no word there yet (revision -1), or the new one
+        has moved clearly away from what it said (INFO_CODE_STEP, or down to zero). True if
+        it was sent."""
+        if revision >= MAX_INFO_VERSION:
+            return False
+        if revision >= 0 and (code == said or (code != 0 and abs(code - said) < INFO_CODE_STEP)):
+            return False
+        self._publish((self.hal.robot_id, round(x_m * 100), round(y_m * 100), 0, 0, code, revision + 1), PRIORITY_INFO)
+        return True

@@ -258,11 +258,10 @@ class Explorer:
             # A place more than 2 d_cam from every such waypoint sees nothing the waypoint
             # would (1 m spare for cell rounding), so it is left out: the same result, much
             # less ray casting.
-            places = others
             wxy = np.array([(w.x_m, w.y_m) for w, *_ in reported])
             reach2 = (2.0 * self.p.d_cam_m + 1.0) ** 2
-            d2 = ((xy[places, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
-            places = places[d2 <= reach2]
+            d2 = ((xy[others, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
+            places = others[d2 <= reach2]
             ij, inside = self._cells_of(xy[places])
             seen = np.zeros(sight.shape, bool)
             kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], self.p.team_view_rays,

@@ -10,7 +10,8 @@ Per `service(now_us, radio)` call:
    duplicates never relayed), and hand its records to `received()`.
 2. if the radio is idle, something waits and (with a TDMA schedule) the robot's slot is open
    long enough: build one frame (relays first, else the
-   highest-priority records that fit `profile.max_payload_bytes`, grouped by type), and send
+   highest-priority records that fit `max_frame_bytes`: the profile's payload limit,
+   or less under a byte-rate cap whose window holds less; grouped by type), and send
    it only if (a) the sub-band airtime budget holds in the duty-cycle window ending when this
    frame would end (the worst window, see `_duty_cycle_ok`) and (b) with a byte-rate cap,
    the bytes sent in the last RATE_WINDOW_US plus this frame stay within cap x window.
