@@ -44,6 +44,33 @@ def nearest_traversable(traversable: np.ndarray, i: int, j: int, radius_cells: i
     return int(cells[k, 0] + i0), int(cells[k, 1] + j0)
 
 
+class GridPaths:
+    """Shortest paths in the local map from the robot's cell, settled only as far as asked:
+    a plan needs the costs of its candidate cells and the route to one of them, seldom the
+    whole window, and the search is most of a plan's time. Cells settle in the same order
+    as in a full search (kernels.dijkstra_settle), so every answer is the full search's."""
+
+    def __init__(self, traversable: np.ndarray, cell_cost: np.ndarray, start_i: int, start_j: int):
+        self._traversable = traversable
+        self._cell_cost = cell_cost
+        self.reachable = kernels.reachable_cells(traversable, start_i, start_j)
+        self.dist, self.parent, *self._heap = kernels.dijkstra_start(traversable, start_i, start_j)
+
+    def settle(self, i: np.ndarray, j: np.ndarray) -> None:
+        """Make dist and parent final at the cells (i, j) that are reachable."""
+        i = np.asarray(i, np.int64)
+        j = np.asarray(j, np.int64)
+        ok = self.reachable[i, j]
+        if ok.any():
+            kernels.dijkstra_settle(self._traversable, self._cell_cost, self.dist, self.parent, *self._heap,
+                                    i[ok] * self.dist.shape[1] + j[ok])
+
+    def path(self, goal_i: int, goal_j: int) -> list[tuple[int, int]]:
+        """Cells from the start to a reachable goal."""
+        self.settle(np.array([goal_i]), np.array([goal_j]))
+        return extract_path(self.parent, goal_i, goal_j)
+
+
 def extract_path(parent: np.ndarray, goal_i: int, goal_j: int) -> list[tuple[int, int]]:
     cols = parent.shape[1]
     cells = [(goal_i, goal_j)]
@@ -127,8 +154,8 @@ class Explorer:
             if start is None:
                 return Plan(None, np.zeros((0, 2)), False)
             layers.traversable[start] = True
-        dist, parent = kernels.dijkstra_grid(layers.traversable, layers.cell_cost, start[0], start[1])
-        reachable = np.isfinite(dist)
+        paths = GridPaths(layers.traversable, layers.cell_cost, start[0], start[1])
+        reachable = paths.reachable
         self.waypoints.update(self.map, layers.sight, reachable)
         if self.team.strategy.shares_topology:
             self._drop_waypoints_seen_by_others(layers.sight)
@@ -147,11 +174,14 @@ class Explorer:
             sx, sy = self.topo.positions()[topo_src]
             to_src_m = math.hypot(sx - x_m, sy - y_m)
         candidates = self._candidates(layers.sight)
-        for c in candidates:
+        cells = [self.map.cell_of(c.x_m, c.y_m) for c in candidates]
+        local = [self._in_window(wi, wj) and reachable[wi, wj] for wi, wj in cells]
+        local_ij = np.array([ij for ij, ok in zip(cells, local) if ok], np.int64).reshape(-1, 2)
+        paths.settle(local_ij[:, 0], local_ij[:, 1])
+        for c, (wi, wj), ok in zip(candidates, cells, local):
             graph_cost, _ = self.topo.cost_to(topo_dist, c.x_m, c.y_m)
             c.graph_cost_m = graph_cost + to_src_m
-            wi, wj = self.map.cell_of(c.x_m, c.y_m)
-            c.cost_m = float(dist[wi, wj]) * res if self._in_window(wi, wj) and reachable[wi, wj] else c.graph_cost_m
+            c.cost_m = float(paths.dist[wi, wj]) * res if ok else c.graph_cost_m
         if self.team.strategy.ranking == "minpos":
             self._minpos_ranks(candidates)
         # Strikes only count for targets that are still targets.
@@ -160,7 +190,7 @@ class Explorer:
 
         while candidates:
             c = self._choose(candidates)
-            path = self._route(c, parent, reachable, topo_src, topo_dist, topo_parent, x_m, y_m)
+            path = self._route(c, paths, topo_src, topo_dist, topo_parent, x_m, y_m)
             if path is not None:
                 self._strikes.pop((c.x_m, c.y_m), None)
                 self._track_progress(c, now_us)
@@ -337,13 +367,14 @@ class Explorer:
             self.target = None
 
     # --- routes -----------------------------------------------------------------------
-    def _route(self, c: _Candidate, parent, reachable, topo_src, topo_dist, topo_parent,
+    def _route(self, c: _Candidate, paths: GridPaths, topo_src, topo_dist, topo_parent,
                x_m: float, y_m: float) -> np.ndarray | None:
         """A local path to the target, or to the farthest vertex on the topological route
         towards it that the local map can reach."""
+        reachable = paths.reachable
         wi, wj = self.map.cell_of(c.x_m, c.y_m)
         if self._in_window(wi, wj) and reachable[wi, wj]:
-            return self._path_xy(extract_path(parent, wi, wj))
+            return self._path_xy(paths.path(wi, wj))
         if topo_src is None:
             return None
         _, goal_vertex = self.topo.cost_to(topo_dist, c.x_m, c.y_m)
@@ -366,7 +397,7 @@ class Explorer:
                 break
         if best is None or math.hypot(xy[best[0], 0] - x_m, xy[best[0], 1] - y_m) < self.p.waypoint_reached_m:
             return None  # the only reachable place on the way is where we stand: no progress
-        return self._path_xy(extract_path(parent, best[1][0], best[1][1]))
+        return self._path_xy(paths.path(best[1][0], best[1][1]))
 
 
 def cell_known(local_map: LocalMap, i: int, j: int) -> bool:

@@ -219,34 +219,54 @@ def _pop_top(keys, vals, pos, size):
 
 
 @njit(cache=True)
-def dijkstra_grid(traversable, cell_cost, start_i, start_j):
-    """Shortest paths over 8-connected traversable cells from one start cell.
-
-    A step costs its length in cells times the mean of the two cells' cost factors, so a
-    path through narrow places pays for hugging walls (Bayer & Faigl IV-A). Diagonal steps
-    may not cut a blocked corner. Returns (cost in cells, inf where unreachable; parent as
-    flat index, -1 for the start and unreached cells). The heap orders ties by flat index,
-    so the result is a pure function of the inputs. It holds each cell at most once (a
-    better cost moves the cell up in place), which keeps it small on open maps.
-    """
+def dijkstra_start(traversable, start_i, start_j):
+    """The state of a shortest-path search over the grid from one start cell, before any
+    cell is settled: (dist, parent, heap keys, heap values, heap slot of each cell, heap
+    size as a 1-element array). dijkstra_settle advances it."""
     rows, cols = traversable.shape
     dist = np.full((rows, cols), np.inf)
     parent = np.full((rows, cols), -1, np.int64)
-    if not traversable[start_i, start_j]:
-        return dist, parent
     keys = np.empty(rows * cols, np.float64)
     vals = np.empty(rows * cols, np.int64)
     pos = np.full(rows * cols, -1, np.int64)   # heap slot of each cell; -1 never seen, -2 settled
-    keys[0] = 0.0
-    vals[0] = start_i * cols + start_j
-    pos[vals[0]] = 0
-    size = 1
-    dist[start_i, start_j] = 0.0
+    size = np.zeros(1, np.int64)
+    if traversable[start_i, start_j]:
+        keys[0] = 0.0
+        vals[0] = start_i * cols + start_j
+        pos[vals[0]] = 0
+        size[0] = 1
+        dist[start_i, start_j] = 0.0
+    return dist, parent, keys, vals, pos, size
+
+
+@njit(cache=True)
+def dijkstra_settle(traversable, cell_cost, dist, parent, keys, vals, pos, size, want_flat):
+    """Run the search of dijkstra_start until every cell in want_flat is settled (its dist
+    and parent final) or nothing is left to settle; an empty want_flat runs it to the end.
+
+    A step costs its length in cells times the mean of the two cells' cost factors, so a
+    path through narrow places pays for hugging walls (Bayer & Faigl IV-A). Diagonal steps
+    may not cut a blocked corner. The heap orders ties by flat index, so cells settle in
+    the same order however the search is split into calls: a settled cell's dist and parent
+    are those of the full search. It holds each cell at most once (a better cost moves the
+    cell up in place), which keeps it small on open maps.
+    """
+    rows, cols = traversable.shape
+    waiting = 0
+    for f in want_flat:
+        if pos[f] != -2:
+            waiting += 1
+    if waiting == 0 and want_flat.shape[0] > 0:
+        return
+    wanted = np.zeros(rows * cols, np.bool_)
+    for f in want_flat:
+        wanted[f] = True
     s2 = math.sqrt(2.0)
-    while size > 0:
+    n = size[0]
+    while n > 0:
         dcur = keys[0]
         flat = vals[0]
-        size = _pop_top(keys, vals, pos, size)
+        n = _pop_top(keys, vals, pos, n)
         i = flat // cols
         j = flat - i * cols
         for di in range(-1, 2):
@@ -268,12 +288,54 @@ def dijkstra_grid(traversable, cell_cost, start_i, start_j):
                     nflat = ni * cols + nj
                     slot = pos[nflat]
                     if slot == -1:
-                        slot = size
-                        size += 1
+                        slot = n
+                        n += 1
                     keys[slot] = nd
                     vals[slot] = nflat
                     _sift_up(keys, vals, pos, slot)
+        if wanted[flat]:
+            waiting -= 1
+            if waiting == 0:
+                break
+    size[0] = n
+
+
+@njit(cache=True)
+def dijkstra_grid(traversable, cell_cost, start_i, start_j):
+    """Shortest paths over 8-connected traversable cells from one start cell, all of them
+    (see dijkstra_settle for the step costs). Returns (cost in cells, inf where
+    unreachable; parent as flat index, -1 for the start and unreached cells)."""
+    dist, parent, keys, vals, pos, size = dijkstra_start(traversable, start_i, start_j)
+    dijkstra_settle(traversable, cell_cost, dist, parent, keys, vals, pos, size, np.empty(0, np.int64))
     return dist, parent
+
+
+@njit(cache=True)
+def reachable_cells(traversable, start_i, start_j):
+    """The cells dijkstra_grid reaches, without the costs: diagonal steps may not cut a
+    corner, so every diagonal step has a two-step detour through traversable cells and
+    4-connectivity reaches the same set. A flood fill, several times cheaper."""
+    rows, cols = traversable.shape
+    out = np.zeros((rows, cols), np.bool_)
+    if not traversable[start_i, start_j]:
+        return out
+    stack = np.empty(rows * cols, np.int64)
+    stack[0] = start_i * cols + start_j
+    out[start_i, start_j] = True
+    top = 1
+    while top > 0:
+        top -= 1
+        flat = stack[top]
+        i = flat // cols
+        j = flat - i * cols
+        for k in range(4):
+            ni = i + (1 if k == 0 else -1 if k == 1 else 0)
+            nj = j + (1 if k == 2 else -1 if k == 3 else 0)
+            if 0 <= ni < rows and 0 <= nj < cols and traversable[ni, nj] and not out[ni, nj]:
+                out[ni, nj] = True
+                stack[top] = ni * cols + nj
+                top += 1
+    return out
 
 
 @njit(cache=True)

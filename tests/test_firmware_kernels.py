@@ -89,6 +89,33 @@ def test_dijkstra_matches_reference(free, data):
 
 
 @SETTINGS
+@given(grids(), st.data())
+def test_dijkstra_settled_in_parts_equals_the_full_search(free, data):
+    """Settling cells a few at a time (what a plan does) gives every settled cell the
+    full search's cost and parent, and the flood fill finds the cells the search reaches."""
+    rows, cols = free.shape
+    cost = np.array(data.draw(st.lists(st.floats(1.0, 3.0), min_size=rows * cols, max_size=rows * cols))).reshape(rows, cols)
+    si = data.draw(st.integers(0, rows - 1))
+    sj = data.draw(st.integers(0, cols - 1))
+    trav = free.astype(bool)
+    full_dist, full_parent = kernels.dijkstra_grid(trav, cost, si, sj)
+    reach = kernels.reachable_cells(trav, si, sj)
+    np.testing.assert_array_equal(reach, np.isfinite(full_dist))
+    dist, parent, *heap = kernels.dijkstra_start(trav, si, sj)
+    settled = np.zeros((rows, cols), bool)
+    for _ in range(data.draw(st.integers(1, 4))):
+        k = data.draw(st.integers(0, 5))
+        wi = np.array(data.draw(st.lists(st.integers(0, rows - 1), min_size=k, max_size=k)), np.int64)
+        wj = np.array(data.draw(st.lists(st.integers(0, cols - 1), min_size=k, max_size=k)), np.int64)
+        ok = reach[wi, wj]
+        kernels.dijkstra_settle(trav, cost, dist, parent, *heap, wi[ok] * cols + wj[ok])
+        settled[wi[ok], wj[ok]] = True
+        # Exactly equal, not close: the cells settle in the full search's order.
+        np.testing.assert_array_equal(dist[settled], full_dist[settled])
+        np.testing.assert_array_equal(parent[settled], full_parent[settled])
+
+
+@SETTINGS
 @given(grids(values=(0, 1, 2)), st.data())
 def test_observable_unknown_matches_reference(state, data):
     rows, cols = state.shape
