@@ -50,11 +50,18 @@ class GridPaths:
     whole window, and the search is most of a plan's time. Cells settle in the same order
     as in a full search (kernels.dijkstra_settle), so every answer is the full search's."""
 
-    def __init__(self, traversable: np.ndarray, cell_cost: np.ndarray, start_i: int, start_j: int):
+    def __init__(self, traversable: np.ndarray, cell_cost: np.ndarray, start_i: int, start_j: int,
+                 arrays: tuple | None = None):
+        """arrays: kernels.dijkstra_arrays of the window's shape to reuse (the previous
+        plan's GridPaths.arrays); they are overwritten."""
         self._traversable = traversable
         self._cell_cost = cell_cost
         self.reachable = kernels.reachable_cells(traversable, start_i, start_j)
-        self.dist, self.parent, *self._heap = kernels.dijkstra_start(traversable, start_i, start_j)
+        if arrays is None or arrays[0].shape != traversable.shape:
+            arrays = kernels.dijkstra_arrays(*traversable.shape)
+        self.arrays = arrays
+        kernels.dijkstra_start(traversable, start_i, start_j, *arrays)
+        self.dist, self.parent, *self._heap = arrays
 
     def settle(self, i: np.ndarray, j: np.ndarray) -> None:
         """Make dist and parent final at the cells (i, j) that are reachable."""
@@ -127,6 +134,7 @@ class Explorer:
         # last collected them: stale in its own map, or reached. Its word there settles them.
         self.team_places_emptied: list[tuple[float, float]] = []
         self._strikes: dict[tuple[float, float], int] = {}
+        self._search_arrays: tuple | None = None   # GridPaths' arrays, reused plan after plan
         # Edges of the shared map that this robot's own map shows crossing a wall.
         self.blocked_edges: set[tuple[tuple[int, int], tuple[int, int]]] = set()
 
@@ -154,7 +162,8 @@ class Explorer:
             if start is None:
                 return Plan(None, np.zeros((0, 2)), False)
             layers.traversable[start] = True
-        paths = GridPaths(layers.traversable, layers.cell_cost, start[0], start[1])
+        paths = GridPaths(layers.traversable, layers.cell_cost, start[0], start[1], self._search_arrays)
+        self._search_arrays = paths.arrays
         reachable = paths.reachable
         self.waypoints.update(self.map, layers.sight, reachable)
         if self.team.strategy.shares_topology:

@@ -219,24 +219,29 @@ def _pop_top(keys, vals, pos, size):
 
 
 @njit(cache=True)
-def dijkstra_start(traversable, start_i, start_j):
-    """The state of a shortest-path search over the grid from one start cell, before any
-    cell is settled: (dist, parent, heap keys, heap values, heap slot of each cell, heap
-    size as a 1-element array). dijkstra_settle advances it."""
+def dijkstra_start(traversable, start_i, start_j, dist, parent, keys, vals, pos, size):
+    """Set the arrays of a shortest-path search over the grid from one start cell to its
+    state before any cell is settled: dist and parent (rows x cols), the heap's keys and
+    values and each cell's heap slot (rows * cols each), the heap size (1 element).
+    dijkstra_settle advances it. The caller owns the arrays, so a robot that plans every
+    second reuses them instead of paging in fresh megabytes each time."""
     rows, cols = traversable.shape
-    dist = np.full((rows, cols), np.inf)
-    parent = np.full((rows, cols), -1, np.int64)
-    keys = np.empty(rows * cols, np.float64)
-    vals = np.empty(rows * cols, np.int64)
-    pos = np.full(rows * cols, -1, np.int64)   # heap slot of each cell; -1 never seen, -2 settled
-    size = np.zeros(1, np.int64)
+    dist[:, :] = np.inf
+    parent[:, :] = -1
+    pos[:] = -1                                # heap slot of each cell; -1 never seen, -2 settled
+    size[0] = 0
     if traversable[start_i, start_j]:
         keys[0] = 0.0
         vals[0] = start_i * cols + start_j
         pos[vals[0]] = 0
         size[0] = 1
         dist[start_i, start_j] = 0.0
-    return dist, parent, keys, vals, pos, size
+
+
+def dijkstra_arrays(rows, cols):
+    """Fresh arrays for dijkstra_start: (dist, parent, keys, vals, pos, size)."""
+    return (np.empty((rows, cols), np.float64), np.empty((rows, cols), np.int64), np.empty(rows * cols, np.float64),
+            np.empty(rows * cols, np.int64), np.empty(rows * cols, np.int64), np.empty(1, np.int64))
 
 
 @njit(cache=True)
@@ -305,7 +310,14 @@ def dijkstra_grid(traversable, cell_cost, start_i, start_j):
     """Shortest paths over 8-connected traversable cells from one start cell, all of them
     (see dijkstra_settle for the step costs). Returns (cost in cells, inf where
     unreachable; parent as flat index, -1 for the start and unreached cells)."""
-    dist, parent, keys, vals, pos, size = dijkstra_start(traversable, start_i, start_j)
+    rows, cols = traversable.shape
+    dist = np.empty((rows, cols), np.float64)
+    parent = np.empty((rows, cols), np.int64)
+    keys = np.empty(rows * cols, np.float64)
+    vals = np.empty(rows * cols, np.int64)
+    pos = np.empty(rows * cols, np.int64)
+    size = np.empty(1, np.int64)
+    dijkstra_start(traversable, start_i, start_j, dist, parent, keys, vals, pos, size)
     dijkstra_settle(traversable, cell_cost, dist, parent, keys, vals, pos, size, np.empty(0, np.int64))
     return dist, parent
 

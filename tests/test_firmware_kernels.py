@@ -101,7 +101,10 @@ def test_dijkstra_settled_in_parts_equals_the_full_search(free, data):
     full_dist, full_parent = kernels.dijkstra_grid(trav, cost, si, sj)
     reach = kernels.reachable_cells(trav, si, sj)
     np.testing.assert_array_equal(reach, np.isfinite(full_dist))
-    dist, parent, *heap = kernels.dijkstra_start(trav, si, sj)
+    arrays = kernels.dijkstra_arrays(rows, cols)
+    arrays[0][:] = 7.0   # left over from an earlier search: dijkstra_start must reset it
+    kernels.dijkstra_start(trav, si, sj, *arrays)
+    dist, parent, *heap = arrays
     settled = np.zeros((rows, cols), bool)
     for _ in range(data.draw(st.integers(1, 4))):
         k = data.draw(st.integers(0, 5))
