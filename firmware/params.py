@@ -33,6 +33,11 @@ class ExplorationParams:
     # (2 pi d_cam in cells: neighbouring rays one cell apart at d_cam).
     presence_keep_bit: float = 900.0
     team_view_rays: int = 600
+    # A teammate's place this close to one of ours saw about what we saw from there
+    # (Explorer._revive_shared_frontiers, the presence rule's deadlock breaker; 0: off).
+    # Off by default: with 2.5 m it saved the one mission that deadlocked (cave greedy seed
+    # 4, 51 % coverage) but cost the cave's other missions 20 to 40 % of p_max.
+    shared_view_m: float = 0.0
     # Robot body and navigation.
     robot_radius_m: float = 0.25
     safety_margin_m: float = 0.07            # traversable cells keep radius + margin from walls

@@ -92,6 +92,7 @@ class MissionResult:
             "targets_unreachable": [e.dropped_unreachable for e in ex],
             "targets_stalled": [e.dropped_stalled for e in ex],
             "waypoints_dropped_by_presence": [e.dropped_by_presence for e in ex],
+            "waypoints_revived": [e.revived for e in ex],
             "team_targets_stale": [e.stale_team_targets for e in ex],
             "bumps": [a.bumps for a in self.agents],
         }

@@ -3,6 +3,7 @@ reduced to the tables of Bayer & Faigl (Table III: p_max per map and strategy; T
 packet size, bandwidth and robots per scheme) and their path figures (Figs. 8 and 9)."""
 from __future__ import annotations
 
+import ast
 import csv
 import hashlib
 import json
@@ -56,15 +57,29 @@ _MEASURED_CODE = ("firmware", "hal", "world_sim", "radio_sim", "host_tools/missi
 
 
 def code_fingerprint(root: Path = Path(__file__).resolve().parents[1]) -> str:
-    """SHA-256 over the measured code's Python sources (paths and contents, in path order)."""
+    """SHA-256 over the measured code's Python sources (paths and syntax trees, in path
+    order). The trees leave out docstrings, comments and layout, so rewording those does
+    not make a resumed sweep run its finished trials again; any change to what runs does."""
     files: list[Path] = []
     for name in _MEASURED_CODE:
         p = root / name
         files += sorted(p.rglob("*.py")) if p.is_dir() else [p]
     digest = hashlib.sha256()
     for f in files:
-        digest.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+        digest.update(f.relative_to(root).as_posix().encode() + b"\0" + _code_only(f.read_bytes()) + b"\0")
     return digest.hexdigest()
+
+
+def _code_only(source: bytes) -> bytes:
+    """The syntax tree of a Python source without its docstrings, as text (no positions)."""
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            body = node.body
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
+                    and isinstance(body[0].value.value, str):
+                node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree).encode()
 
 
 def run_trial(cfg: MissionConfig) -> dict:

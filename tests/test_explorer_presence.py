@@ -1,6 +1,8 @@
 """The presence rule (Bayer & Faigl IV-A, with the refinements in
 Explorer._drop_waypoints_seen_by_others) on hand-built local maps: a corridor along x with an
 open, unexplored end, and a door in its north wall into an unexplored room."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -12,12 +14,14 @@ from firmware.topo_map import TopoMap
 from firmware.waypoints import Waypoint
 
 P = ExplorationParams()
+REVIVING = dataclasses.replace(P, shared_view_m=2.5)
 ME, OTHER = 0, 1
 
 
-def _explorer() -> Explorer:
+def _explorer(door: bool = True, params: ExplorationParams = P) -> Explorer:
     """Corridor y in [19, 21] m from x = 5 to 35 m, walls along both sides, unknown beyond
-    x = 35 m (the open end) and north of a 1 m door at x in [20, 21] m."""
+    x = 35 m (the open end) and north of a 1 m door at x in [20, 21] m (or, without the door,
+    closed everywhere but at the open end)."""
     local_map = LocalMap(P, 20.0, 20.0, KeyframeStore(P.keyframe_bins))
     lo = local_map.logodds
     lo[:] = 0.0
@@ -31,8 +35,14 @@ def _explorer() -> Explorer:
     box(5.0, 35.0, 18.8, 18.9, P.logodds_max)        # south wall
     box(5.0, 19.9, 21.1, 21.2, P.logodds_max)        # north wall, west of the door
     box(21.1, 35.0, 21.1, 21.2, P.logodds_max)       # north wall, east of the door
+    if not door:
+        # Closed but at the east end: no door, a west wall, no unknown sliver along the walls.
+        box(4.8, 35.0, 18.8, 21.2, P.logodds_min)
+        box(4.8, 35.0, 18.8, 18.9, P.logodds_max)
+        box(4.8, 35.0, 21.1, 21.2, P.logodds_max)
+        box(4.8, 4.9, 18.8, 21.2, P.logodds_max)
     topo = TopoMap(P.d_build_m, P.d_connect_m)
-    return Explorer(P, local_map, topo, TeamView(ME, STRATEGIES["minpos"]))
+    return Explorer(params, local_map, topo, TeamView(ME, STRATEGIES["minpos"]))
 
 
 def _report(ex: Explorer, sender: int, x_m: float, y_m: float, e_inf_code: int) -> None:
@@ -84,3 +94,46 @@ def test_passing_the_door_of_a_room_does_not_cancel_the_room():
     for x in np.arange(6.0, 35.0, 1.0):
         _report(ex, OTHER, float(x), 20.0, 0)
     assert _apply(ex, (20.5, 21.6), (30.0, 20.0)) == [(20.5, 21.6)]
+
+
+def _plan_at(ex: Explorer, x_m: float, y_m: float):
+    return ex.plan(x_m, y_m, 1_000_000)
+
+
+@pytest.mark.parametrize("teammate_active", [False, True])
+def test_the_last_robot_takes_back_a_frontier_each_left_to_the_others(teammate_active):
+    """Both robots stood at the corridor's open end and each dropped the frontier there on
+    account of the other's place (the deadlock that left half of a cave unexplored). The
+    teammate's place is within shared_view_m of ours, so it saw about what we saw: once no
+    teammate is active, the frontier is ours again; while one is, we leave it."""
+    ex = _explorer(door=False, params=REVIVING)
+    _report(ex, ME, 34.0, 20.0, 0)
+    _report(ex, OTHER, 36.0, 20.0, 0)
+    if teammate_active:
+        ex.team.positions[OTHER] = (10.0, 20.0)
+    plan = _plan_at(ex, 34.0, 20.0)
+    assert ex.dropped_by_presence > 0
+    if teammate_active:
+        assert plan.done and ex.revived == 0
+    else:
+        assert not plan.done and plan.target is not None and ex.revived > 0
+        assert plan.target.x_m > 30.0
+
+
+def test_a_frontier_a_teammate_saw_from_elsewhere_stays_given_up():
+    """The teammate's place is not near any of ours: its view there is its own, and what it
+    saw stays seen, even for the last robot."""
+    ex = _explorer(door=False, params=REVIVING)
+    _report(ex, ME, 31.0, 20.0, 0)
+    _report(ex, OTHER, 36.0, 20.0, 0)
+    plan = _plan_at(ex, 31.0, 20.0)
+    assert ex.dropped_by_presence > 0
+    assert plan.done and ex.revived == 0
+
+
+def test_the_deadlock_breaker_is_off_by_default():
+    ex = _explorer(door=False)
+    _report(ex, ME, 34.0, 20.0, 0)
+    _report(ex, OTHER, 36.0, 20.0, 0)
+    assert P.shared_view_m == 0.0
+    assert _plan_at(ex, 34.0, 20.0).done and ex.revived == 0

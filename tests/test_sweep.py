@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from host_tools.sweep import SweepSpec, markdown, p_max, run_local, save
+from host_tools.sweep import SweepSpec, code_fingerprint, markdown, p_max, run_local, save
 
 SPEC = SweepSpec(maps=("cave:4:40x40",), strategies=("minpos", "independent"), robots=2, seeds=2,
                  radio="ideal-100Bps", max_sim_s=40.0, also_radios=("eu868-g3",))
@@ -101,3 +101,19 @@ def test_lowest_coverage_is_rounded_down_so_a_bound_is_never_shown_met_when_miss
     from host_tools.sweep import coverage_floor
     assert coverage_floor(0.989962) == 0.9899
     assert coverage_floor(0.99) == 0.99 and coverage_floor(0.57) == 0.57 and coverage_floor(1.0) == 1.0
+
+
+def test_code_fingerprint_ignores_docstrings_comments_and_layout_only(tmp_path):
+    """A resumed sweep reruns its trials when the measured code changes, and only then."""
+    def write(body: str) -> str:
+        for name in ("firmware", "hal", "world_sim", "radio_sim", "host_tools"):
+            (tmp_path / name).mkdir(exist_ok=True)
+        (tmp_path / "host_tools" / "mission.py").write_text("X = 1\n")
+        (tmp_path / "firmware" / "a.py").write_text(body)
+        return code_fingerprint(tmp_path)
+
+    base = write('"""Module."""\ndef f(x):\n    """Twice x."""\n    return 2 * x\n')
+    assert write('"""Reworded."""\n# a comment\ndef f(x):\n    """Doubles x."""\n\n    return 2*x  # why\n') == base
+    assert write('"""Module."""\ndef f(x):\n    return 2 * x\n') == base
+    assert write('"""Module."""\ndef f(x):\n    """Twice x."""\n    return 3 * x\n') != base
+    assert write('"""Module."""\ndef f(x):\n    """Twice x."""\n    return "2 * x"\n') != base
