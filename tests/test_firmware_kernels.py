@@ -68,14 +68,18 @@ def test_chamfer_distance_matches_reference(blocked):
     np.testing.assert_allclose(got, expected, rtol=1e-5)
 
 
+def _search_case(free, data):
+    """A shortest-path problem on a drawn grid: (traversable, cell cost factors, start)."""
+    rows, cols = free.shape
+    cost = np.array(data.draw(st.lists(st.floats(1.0, 3.0), min_size=rows * cols, max_size=rows * cols))).reshape(rows, cols)
+    return free.astype(bool), cost, data.draw(st.integers(0, rows - 1)), data.draw(st.integers(0, cols - 1))
+
+
 @SETTINGS
 @given(grids(), st.data())
 def test_dijkstra_matches_reference(free, data):
     rows, cols = free.shape
-    cost = np.array(data.draw(st.lists(st.floats(1.0, 3.0), min_size=rows * cols, max_size=rows * cols))).reshape(rows, cols)
-    si = data.draw(st.integers(0, rows - 1))
-    sj = data.draw(st.integers(0, cols - 1))
-    trav = free.astype(bool)
+    trav, cost, si, sj = _search_case(free, data)
     dist, parent = kernels.dijkstra_grid(trav, cost, si, sj)
     np.testing.assert_allclose(dist, ref.dijkstra_grid(trav, cost, si, sj), rtol=1e-9)
     # Every reached cell's parent chain leads back to the start.
@@ -94,10 +98,7 @@ def test_dijkstra_settled_in_parts_equals_the_full_search(free, data):
     """Settling cells a few at a time (what a plan does) gives every settled cell the
     full search's cost and parent, and the flood fill finds the cells the search reaches."""
     rows, cols = free.shape
-    cost = np.array(data.draw(st.lists(st.floats(1.0, 3.0), min_size=rows * cols, max_size=rows * cols))).reshape(rows, cols)
-    si = data.draw(st.integers(0, rows - 1))
-    sj = data.draw(st.integers(0, cols - 1))
-    trav = free.astype(bool)
+    trav, cost, si, sj = _search_case(free, data)
     full_dist, full_parent = kernels.dijkstra_grid(trav, cost, si, sj)
     reach = kernels.reachable_cells(trav, si, sj)
     np.testing.assert_array_equal(reach, np.isfinite(full_dist))
