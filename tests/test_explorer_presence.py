@@ -96,6 +96,15 @@ def test_passing_the_door_of_a_room_does_not_cancel_the_room():
     assert _apply(ex, (20.5, 21.6), (30.0, 20.0)) == [(20.5, 21.6)]
 
 
+def _both_at_the_open_end(params: ExplorationParams, my_place_x_m: float) -> Explorer:
+    """The closed corridor, with a place of ours at my_place_x_m and the teammate's at 36 m,
+    just past the open end."""
+    ex = _explorer(door=False, params=params)
+    _report(ex, ME, my_place_x_m, 20.0, 0)
+    _report(ex, OTHER, 36.0, 20.0, 0)
+    return ex
+
+
 def _plan_at(ex: Explorer, x_m: float, y_m: float):
     return ex.plan(x_m, y_m, 1_000_000)
 
@@ -106,9 +115,7 @@ def test_the_last_robot_takes_back_a_frontier_each_left_to_the_others(teammate_a
     account of the other's place (the deadlock that left half of a cave unexplored). The
     teammate's place is within shared_view_m of ours, so it saw about what we saw: once no
     teammate is active, the frontier is ours again; while one is, we leave it."""
-    ex = _explorer(door=False, params=REVIVING)
-    _report(ex, ME, 34.0, 20.0, 0)
-    _report(ex, OTHER, 36.0, 20.0, 0)
+    ex = _both_at_the_open_end(REVIVING, 34.0)
     if teammate_active:
         ex.team.positions[OTHER] = (10.0, 20.0)
     plan = _plan_at(ex, 34.0, 20.0)
@@ -123,17 +130,13 @@ def test_the_last_robot_takes_back_a_frontier_each_left_to_the_others(teammate_a
 def test_a_frontier_a_teammate_saw_from_elsewhere_stays_given_up():
     """The teammate's place is not near any of ours: its view there is its own, and what it
     saw stays seen, even for the last robot."""
-    ex = _explorer(door=False, params=REVIVING)
-    _report(ex, ME, 31.0, 20.0, 0)
-    _report(ex, OTHER, 36.0, 20.0, 0)
+    ex = _both_at_the_open_end(REVIVING, 31.0)
     plan = _plan_at(ex, 31.0, 20.0)
     assert ex.dropped_by_presence > 0
     assert plan.done and ex.revived == 0
 
 
 def test_the_deadlock_breaker_is_off_by_default():
-    ex = _explorer(door=False)
-    _report(ex, ME, 34.0, 20.0, 0)
-    _report(ex, OTHER, 36.0, 20.0, 0)
+    ex = _both_at_the_open_end(P, 34.0)
     assert P.shared_view_m == 0.0
     assert _plan_at(ex, 34.0, 20.0).done and ex.revived == 0

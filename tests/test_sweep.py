@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from host_tools.sweep import SweepSpec, code_fingerprint, markdown, p_max, run_local, save
+from host_tools.sweep import SweepSpec, code_fingerprint, coverage_floor, markdown, p_max, run_local, save
 
 SPEC = SweepSpec(maps=("cave:4:40x40",), strategies=("minpos", "independent"), robots=2, seeds=2,
                  radio="ideal-100Bps", max_sim_s=40.0, also_radios=("eu868-g3",))
@@ -98,7 +98,6 @@ def test_an_interrupted_sweep_resumes_where_it_stopped(tmp_path, capsys):
 
 
 def test_lowest_coverage_is_rounded_down_so_a_bound_is_never_shown_met_when_missed():
-    from host_tools.sweep import coverage_floor
     assert coverage_floor(0.989962) == 0.9899
     assert coverage_floor(0.99) == 0.99 and coverage_floor(0.57) == 0.57 and coverage_floor(1.0) == 1.0
 
