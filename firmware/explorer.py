@@ -269,9 +269,7 @@ class Explorer:
         - the cells in line of sight within d_cam of every place others reported (as far as
           our map can tell: our known walls block the view, unknown cells do not) are taken
           as seen, and if the waypoint still has presence_keep_bit of information beyond
-          them, and presence_keep_fraction of what our own map shows it, it stays. (The
-          share matters because both views are cast through unknown cells as if open:
-          what the teammates' view leaves is mostly the far rim of the waypoint's view.)
+          them, it stays.
         Whether the teammate still holds information at its place does not matter: what it
         saw from there is seen, and what it has left is its own waypoint, shared as e_inf.
         (Counting only places with e_inf 0 left robots re-exploring what teammates had seen
@@ -280,7 +278,8 @@ class Explorer:
         Returns the waypoints it dropped."""
         if not len(self.topo) or not self.waypoints.items:
             return []
-        keep, dropped = self._split_by_team_view(self.waypoints.items, sight, self._places_of_others())
+        only_others = self.topo.visited_by_others(self.team.robot_id) & ~self.topo.visited_by(self.team.robot_id)
+        keep, dropped = self._split_by_team_view(self.waypoints.items, sight, np.nonzero(only_others)[0])
         self.waypoints.items = keep
         self.dropped_by_presence += len(dropped)
         return dropped
@@ -316,21 +315,16 @@ class Explorer:
         find (on seed 2 of the same cave, p_max went from 354 to 516 m). And only for what
         the presence rule itself would keep, presence_keep_bit: the last robot of the Intel
         lab, seed 0, drove 120 m more to pockets of 100 to 350 bit and gained 0.03 % coverage."""
-        others = self._places_of_others(apart_m=self.p.shared_view_m)
+        others = np.nonzero(self.topo.visited_by_others(self.team.robot_id)
+                            & ~self.topo.visited_by(self.team.robot_id))[0]
+        mine = self.topo.positions()[self.topo.visited_by(self.team.robot_id)]
+        if len(others) and len(mine):
+            xy = self.topo.positions()
+            d2 = ((xy[others, None, :] - mine[None, :, :]) ** 2).sum(axis=2).min(axis=1)
+            others = others[d2 > self.p.shared_view_m ** 2]
         big = [g for g in self._given_up if g.e_bit >= self.p.presence_keep_bit]
         revived, _ = self._split_by_team_view(big, sight, others)
         return revived
-
-    def _places_of_others(self, apart_m: float = 0.0) -> np.ndarray:
-        """Indices of the places teammates reported and this robot did not, leaving out those
-        within apart_m of one of this robot's own places (0: none left out)."""
-        mine = self.topo.visited_by(self.team.robot_id)
-        others = np.nonzero(self.topo.visited_by_others(self.team.robot_id) & ~mine)[0]
-        if apart_m > 0 and len(others) and mine.any():
-            xy = self.topo.positions()
-            d2 = ((xy[others, None, :] - xy[mine][None, :, :]) ** 2).sum(axis=2).min(axis=1)
-            others = others[d2 > apart_m ** 2]
-        return others
 
     def _split_by_team_view(self, items: list[Waypoint], sight: np.ndarray,
                             others: np.ndarray) -> tuple[list[Waypoint], list[Waypoint]]:
@@ -373,15 +367,10 @@ class Explorer:
             team_sight[seen & (sight == kernels.UNKNOWN)] = kernels.SEEN_BY_TEAM
             wi = np.array([r[1] for r in reported], np.int64)
             wj = np.array([r[2] for r in reported], np.int64)
-            d_cam_cells = self.p.d_cam_m / self.p.resolution_m
-            bit = self.p.entropy_per_cell_bit
-            unseen_bit = kernels.observable_unknown(team_sight, wi, wj, self.p.info_rays, d_cam_cells) * bit
-            need_bit = np.full(len(reported), self.p.presence_keep_bit)
-            if self.p.presence_keep_fraction > 0:
-                own_bit = kernels.observable_unknown(sight, wi, wj, self.p.info_rays, d_cam_cells) * bit
-                need_bit = np.maximum(need_bit, self.p.presence_keep_fraction * own_bit)
-            for (w, *_), left, need in zip(reported, unseen_bit, need_bit):
-                (keep if left >= need else dropped).append(w)
+            unseen_bit = kernels.observable_unknown(team_sight, wi, wj, self.p.info_rays,
+                                                    self.p.d_cam_m / self.p.resolution_m) * self.p.entropy_per_cell_bit
+            for (w, *_), left in zip(reported, unseen_bit):
+                (keep if left >= self.p.presence_keep_bit else dropped).append(w)
         return keep, dropped
 
     def _minpos_ranks(self, candidates: list[_Candidate]) -> None:

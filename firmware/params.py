@@ -28,19 +28,11 @@ class ExplorationParams:
     candidate_spacing_m: float = 1.0         # waypoint candidates are evaluated on this sub-grid
     info_rays: int = 64                      # rays cast from a candidate to count observable cells
     # The presence rule (Explorer._drop_waypoints_seen_by_others): a waypoint near places
-    # teammates reported stays if this much information is out of their view (10 e_min,
+    # teammates finished with stays if this much information is out of their view (10 e_min,
     # about 3.5 m2: a room behind a door), and their view is cast with this many rays
     # (2 pi d_cam in cells: neighbouring rays one cell apart at d_cam).
     presence_keep_bit: float = 900.0
     team_view_rays: int = 600
-    # It also needs this share of what the waypoint would observe in this robot's own map
-    # to be out of their view. Both views are cast through cells nobody here has seen, as if open,
-    # so the part a teammate's view leaves out is the far rim of the waypoint's d_cam disc,
-    # and in a maze a few m2 of rim always remain: with presence_keep_bit alone, MinPos
-    # drove to waypoints teammates had mostly seen and its p_max was 1.13 times MinPos-full's
-    # on maze_b and 1.14 on the Intel lab (10 seeds). A room seen through its door keeps
-    # most of its share (the door lets only a cone of the teammate's view in).
-    presence_keep_fraction: float = 0.3
     # A teammate's place this close to one of ours saw about what we saw from there
     # (Explorer._revive_shared_frontiers, the presence rule's deadlock breaker; 0: off).
     # Off by default: with 2.5 m it saved the one mission that deadlocked (cave greedy seed

@@ -96,17 +96,6 @@ def test_passing_the_door_of_a_room_does_not_cancel_the_room():
     assert _apply(ex, (20.5, 21.6), (30.0, 20.0)) == [(20.5, 21.6)]
 
 
-@pytest.mark.parametrize("share", [P.presence_keep_fraction, 0.0])
-def test_a_room_a_teammate_mostly_saw_from_inside_is_dropped(share):
-    """The teammate stood 5.4 m into the room, north of the door: its view leaves about
-    2100 bit of the waypoint's, more than presence_keep_bit but 6 % of the 39000 bit our
-    own map shows, the far rim of the waypoint's view. Without the share rule it stays."""
-    ex = _explorer(params=dataclasses.replace(P, presence_keep_fraction=share))
-    _report(ex, OTHER, 20.5, 27.0, 0)
-    kept = _apply(ex, (20.5, 21.6))
-    assert kept == ([] if share > 0 else [(20.5, 21.6)])
-
-
 def _both_at_the_open_end(params: ExplorationParams, my_place_x_m: float) -> Explorer:
     """The closed corridor, with a place of ours at my_place_x_m and the teammate's at 36 m,
     just past the open end."""
