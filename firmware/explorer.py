@@ -278,8 +278,7 @@ class Explorer:
         Returns the waypoints it dropped."""
         if not len(self.topo) or not self.waypoints.items:
             return []
-        only_others = self.topo.visited_by_others(self.team.robot_id) & ~self.topo.visited_by(self.team.robot_id)
-        keep, dropped = self._split_by_team_view(self.waypoints.items, sight, np.nonzero(only_others)[0])
+        keep, dropped = self._split_by_team_view(self.waypoints.items, sight, self._places_of_others())
         self.waypoints.items = keep
         self.dropped_by_presence += len(dropped)
         return dropped
@@ -315,16 +314,21 @@ class Explorer:
         find (on seed 2 of the same cave, p_max went from 354 to 516 m). And only for what
         the presence rule itself would keep, presence_keep_bit: the last robot of the Intel
         lab, seed 0, drove 120 m more to pockets of 100 to 350 bit and gained 0.03 % coverage."""
-        others = np.nonzero(self.topo.visited_by_others(self.team.robot_id)
-                            & ~self.topo.visited_by(self.team.robot_id))[0]
-        mine = self.topo.positions()[self.topo.visited_by(self.team.robot_id)]
-        if len(others) and len(mine):
-            xy = self.topo.positions()
-            d2 = ((xy[others, None, :] - mine[None, :, :]) ** 2).sum(axis=2).min(axis=1)
-            others = others[d2 > self.p.shared_view_m ** 2]
+        others = self._places_of_others(apart_m=self.p.shared_view_m)
         big = [g for g in self._given_up if g.e_bit >= self.p.presence_keep_bit]
         revived, _ = self._split_by_team_view(big, sight, others)
         return revived
+
+    def _places_of_others(self, apart_m: float = 0.0) -> np.ndarray:
+        """Indices of the places teammates reported and this robot did not, leaving out those
+        within apart_m of one of this robot's own places (0: none left out)."""
+        mine = self.topo.visited_by(self.team.robot_id)
+        others = np.nonzero(self.topo.visited_by_others(self.team.robot_id) & ~mine)[0]
+        if apart_m > 0 and len(others) and mine.any():
+            xy = self.topo.positions()
+            d2 = ((xy[others, None, :] - xy[mine][None, :, :]) ** 2).sum(axis=2).min(axis=1)
+            others = others[d2 > apart_m ** 2]
+        return others
 
     def _split_by_team_view(self, items: list[Waypoint], sight: np.ndarray,
                             others: np.ndarray) -> tuple[list[Waypoint], list[Waypoint]]:
