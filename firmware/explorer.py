@@ -132,6 +132,7 @@ class Explorer:
         self._given_up: list[Waypoint] = []   # what the presence rule dropped, for that
         self.stale_team_targets = 0
         self.reached = 0
+        self.seen_on_way = 0
         # Team places (W_inf vertices, metres) this robot found nothing at since the agent
         # last collected them: stale in its own map, or reached. Its word there settles them.
         self.team_places_emptied: list[tuple[float, float]] = []
@@ -168,6 +169,17 @@ class Explorer:
         self._search_arrays = paths.arrays
         reachable = paths.reachable
         self.waypoints.update(self.map, layers.sight, reachable)
+        # Our own target left W: its information is now observed. Seen from close by, it is
+        # done with as if reached, and no waypoint is made there again. Without that, a
+        # waypoint in front of a door of the Intel lab (MinPos, seed 5) kept coming back with
+        # about 1100 bit after the robot had seen it from 0.6 m, and the robot drove back to
+        # it eight times: a few cells of a wall turning unknown again reopen a view.
+        t = self.target
+        if t is not None and not t.from_team and math.hypot(t.x_m - x_m, t.y_m - y_m) < p.target_seen_within_m \
+                and not any((w.x_m, w.y_m) == (t.x_m, t.y_m) for w in self.waypoints.items):
+            self.waypoints.ban(t.x_m, t.y_m)
+            self.seen_on_way += 1
+            self.target = None
         given_up = self._drop_waypoints_seen_by_others(layers.sight) if self.team.strategy.shares_topology else []
 
         # A target reached is done with: its surroundings are now observed (or unobservable).
@@ -270,6 +282,10 @@ class Explorer:
           our map can tell: our known walls block the view, unknown cells do not) are taken
           as seen, and if the waypoint still has presence_keep_bit of information beyond
           them, it stays.
+        - waypoints within the cluster radius of the robot's own current target stay: the
+          cover counted changes as the window moves (it is cast from the places inside it), and
+          a robot giving way every time swung between two targets for minutes (maze_b, MinPos,
+          seed 5: 1014 m).
         Whether the teammate still holds information at its place does not matter: what it
         saw from there is seen, and what it has left is its own waypoint, shared as e_inf.
         (Counting only places with e_inf 0 left robots re-exploring what teammates had seen
@@ -278,8 +294,15 @@ class Explorer:
         Returns the waypoints it dropped."""
         if not len(self.topo) or not self.waypoints.items:
             return []
-        keep, dropped = self._split_by_team_view(self.waypoints.items, sight, self._places_of_others())
-        self.waypoints.items = keep
+        items = self.waypoints.items
+        held = []   # the current target's, exempt
+        t = self.target
+        if t is not None and not t.from_team:
+            r2 = self.p.waypoint_cluster_radius_m ** 2
+            held = [w for w in items if (w.x_m - t.x_m) ** 2 + (w.y_m - t.y_m) ** 2 < r2]
+            items = [w for w in items if (w.x_m - t.x_m) ** 2 + (w.y_m - t.y_m) ** 2 >= r2]
+        keep, dropped = self._split_by_team_view(items, sight, self._places_of_others())
+        self.waypoints.items = held + keep
         self.dropped_by_presence += len(dropped)
         return dropped
 

@@ -44,6 +44,10 @@ class ExplorationParams:
     clearance_cost_m: float = 1.0            # below this distance to walls/unknown, paths pay extra
     clearance_cost_weight: float = 2.0
     waypoint_reached_m: float = 0.5
+    # A target whose information the robot saw while this close to it counts as reached
+    # (Explorer.plan) and is banned: a few wall cells turning unknown again can otherwise
+    # make a waypoint there again and again. Farther off, it merely expires, as any does.
+    target_seen_within_m: float = 1.5
     lookahead_m: float = 0.35
     rotate_in_place_rad: float = 0.8
     heading_gain: float = 2.0

@@ -82,13 +82,15 @@ class MissionResult:
         return self.sim_s / self.wall_s if self.wall_s > 0 else math.inf
 
     def explorer_stats(self) -> dict[str, list[int]]:
-        """Per robot: how its targets ended (reached, dropped as unreachable or stalled),
+        """Per robot: how its targets ended (reached, seen on the way there, dropped as
+        unreachable or stalled),
         waypoints cancelled by teammates' presence and shared-map targets found stale in its
         own map (both counted per planning cycle: a place counts again each cycle it is
         found again), and obstacles it bumped into."""
         ex = [a.explorer for a in self.agents]
         return {
             "targets_reached": [e.reached for e in ex],
+            "targets_seen_on_way": [e.seen_on_way for e in ex],
             "targets_unreachable": [e.dropped_unreachable for e in ex],
             "targets_stalled": [e.dropped_stalled for e in ex],
             "waypoints_dropped_by_presence": [e.dropped_by_presence for e in ex],

@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from firmware.explorer import Explorer
+from firmware.explorer import Explorer, Target
 from firmware.local_map import KeyframeStore, LocalMap
 from firmware.params import ExplorationParams
 from firmware.team import STRATEGIES, TeamView
@@ -140,3 +140,32 @@ def test_the_deadlock_breaker_is_off_by_default():
     ex = _both_at_the_open_end(P, 34.0)
     assert P.shared_view_m == 0.0
     assert _plan_at(ex, 34.0, 20.0).done and ex.revived == 0
+
+
+def test_the_current_target_is_held_against_the_presence_rule():
+    """A robot on its way keeps its target even when a teammate's place now covers it: whether
+    the cover counts changes as the window moves, and a robot that gave way every time swung
+    between two targets for minutes (maze_b, MinPos, seed 5). Other waypoints still go."""
+    ex = _explorer()
+    _report(ex, OTHER, 33.0, 20.0, 0)
+    ex.target = Target(30.0, 20.0, 5.0)
+    assert _apply(ex, (30.0, 20.0), (33.5, 20.0)) == [(30.0, 20.0)]
+    ex.target = Target(30.0, 20.0, 5.0, from_team=True)     # a W_inf vertex holds nothing of ours
+    assert _apply(ex, (30.0, 20.0)) == []
+
+
+@pytest.mark.parametrize("case", ["seen from close by", "seen from afar", "still open", "a W_inf vertex"])
+def test_a_target_whose_information_was_seen_from_close_by_is_done_with(case):
+    """The robot's own target left W because its information is observed: seen from within
+    target_seen_within_m it is done with, like a target reached, and no waypoint is made
+    there again. Seen from farther, or still open, or not our own waypoint: nothing is banned."""
+    ex = _explorer()
+    ex.waypoints.items = [Waypoint(30.0, 20.0, 1000.0)] if case == "still open" else []
+    ex.target = {"seen from close by": Target(11.0, 20.0, 1.0),
+                 "seen from afar": Target(12.0, 20.0, 2.0),
+                 "still open": Target(30.0, 20.0, 20.0),
+                 "a W_inf vertex": Target(11.0, 20.0, 1.0, from_team=True)}[case]
+    x, y = ex.target.x_m, ex.target.y_m
+    _plan_at(ex, 10.0, 20.0)
+    banned = case == "seen from close by"
+    assert ex.waypoints.is_banned(x, y) == banned and ex.seen_on_way == int(banned)
