@@ -173,7 +173,7 @@ class Explorer:
         # done with as if reached, and no waypoint is made there again. Without that, a
         # waypoint in front of a door of the Intel lab (MinPos, seed 5) kept coming back with
         # about 1100 bit after the robot had seen it from 0.6 m, and the robot drove back to
-        # it eight times: a few cells of a wall turning unknown again reopen a view.
+        # it eight times (likely a few cells there turning unknown again, reopening a view).
         t = self.target
         if t is not None and not t.from_team and math.hypot(t.x_m - x_m, t.y_m - y_m) < p.target_seen_within_m \
                 and not any((w.x_m, w.y_m) == (t.x_m, t.y_m) for w in self.waypoints.items):

@@ -82,11 +82,10 @@ class MissionResult:
         return self.sim_s / self.wall_s if self.wall_s > 0 else math.inf
 
     def explorer_stats(self) -> dict[str, list[int]]:
-        """Per robot: how its targets ended (reached, seen on the way there, dropped as
-        unreachable or stalled),
-        waypoints cancelled by teammates' presence and shared-map targets found stale in its
-        own map (both counted per planning cycle: a place counts again each cycle it is
-        found again), and obstacles it bumped into."""
+        """Per robot: how its targets ended (reached, seen from close by on the way, dropped
+        as unreachable or stalled), waypoints cancelled by teammates' presence and shared-map
+        targets found stale in its own map (both counted per planning cycle: a place counts
+        again each cycle it is found again), and obstacles it bumped into."""
         ex = [a.explorer for a in self.agents]
         return {
             "targets_reached": [e.reached for e in ex],
