@@ -169,8 +169,8 @@ class Explorer:
         self._search_arrays = paths.arrays
         reachable = paths.reachable
         self.waypoints.update(self.map, layers.sight, reachable)
-        # Our own target left W: its information is now observed. Seen from close by, it is
-        # done with as if reached, and no waypoint is made there again. Without that, a
+        # Our own target left W: its information is now observed. Seen from within
+        # target_seen_within_m (0: never), it is done with as if reached, and no waypoint is made there again. Without that, a
         # waypoint in front of a door of the Intel lab (MinPos, seed 5) kept coming back with
         # about 1100 bit after the robot had seen it from 0.6 m, and the robot drove back to
         # it eight times (likely a few cells there turning unknown again, reopening a view).
@@ -282,10 +282,10 @@ class Explorer:
           our map can tell: our known walls block the view, unknown cells do not) are taken
           as seen, and if the waypoint still has presence_keep_bit of information beyond
           them, it stays.
-        - waypoints within the cluster radius of the robot's own current target stay: the
-          cover counted changes as the window moves (it is cast from the places inside it), and
-          a robot giving way every time swung between two targets for minutes (maze_b, MinPos,
-          seed 5: 1014 m).
+        - with presence_holds_target, waypoints within the cluster radius of the robot's own
+          current target stay: the cover counted changes as the window moves (it is cast from
+          the places inside it), and a robot giving way every time swung between two targets
+          for minutes (maze_b, MinPos, seed 5: 1014 m).
         Whether the teammate still holds information at its place does not matter: what it
         saw from there is seen, and what it has left is its own waypoint, shared as e_inf.
         (Counting only places with e_inf 0 left robots re-exploring what teammates had seen
@@ -297,7 +297,7 @@ class Explorer:
         items = self.waypoints.items
         held = []   # the current target's, exempt
         t = self.target
-        if t is not None and not t.from_team:
+        if t is not None and not t.from_team and self.p.presence_holds_target:
             r2 = self.p.waypoint_cluster_radius_m ** 2
             held = [w for w in items if (w.x_m - t.x_m) ** 2 + (w.y_m - t.y_m) ** 2 < r2]
             items = [w for w in items if (w.x_m - t.x_m) ** 2 + (w.y_m - t.y_m) ** 2 >= r2]

@@ -15,6 +15,8 @@ from firmware.waypoints import Waypoint
 
 P = ExplorationParams()
 REVIVING = dataclasses.replace(P, shared_view_m=2.5)
+HOLDING = dataclasses.replace(P, presence_holds_target=True)
+SEEING = dataclasses.replace(P, target_seen_within_m=1.5)
 ME, OTHER = 0, 1
 
 
@@ -146,7 +148,7 @@ def test_the_current_target_is_held_against_the_presence_rule():
     """A robot on its way keeps its target even when a teammate's place now covers it: whether
     the cover counts changes as the window moves, and a robot that gave way every time swung
     between two targets for minutes (maze_b, MinPos, seed 5). Other waypoints still go."""
-    ex = _explorer()
+    ex = _explorer(params=HOLDING)
     _report(ex, OTHER, 33.0, 20.0, 0)
     ex.target = Target(30.0, 20.0, 5.0)
     assert _apply(ex, (30.0, 20.0), (33.5, 20.0)) == [(30.0, 20.0)]
@@ -159,7 +161,7 @@ def test_a_target_whose_information_was_seen_from_close_by_is_done_with(case):
     """The robot's own target left W because its information is observed: seen from within
     target_seen_within_m it is done with, like a target reached, and no waypoint is made
     there again. Seen from farther, or still open, or not our own waypoint: nothing is banned."""
-    ex = _explorer()
+    ex = _explorer(params=SEEING)
     ex.waypoints.items = [Waypoint(30.0, 20.0, 1000.0)] if case == "still open" else []
     ex.target = {"seen from close by": Target(11.0, 20.0, 1.0),
                  "seen from afar": Target(12.0, 20.0, 2.0),
@@ -169,3 +171,14 @@ def test_a_target_whose_information_was_seen_from_close_by_is_done_with(case):
     _plan_at(ex, 10.0, 20.0)
     banned = case == "seen from close by"
     assert ex.waypoints.is_banned(x, y) == banned and ex.seen_on_way == int(banned)
+
+
+def test_holding_the_target_and_ending_it_when_seen_are_off_by_default():
+    assert not P.presence_holds_target and P.target_seen_within_m == 0.0
+    ex = _explorer()
+    _report(ex, OTHER, 33.0, 20.0, 0)
+    ex.target = Target(30.0, 20.0, 5.0)
+    assert _apply(ex, (30.0, 20.0)) == []
+    ex.target = Target(11.0, 20.0, 1.0)
+    _plan_at(ex, 10.0, 20.0)
+    assert ex.seen_on_way == 0 and not ex.waypoints.is_banned(11.0, 20.0)
