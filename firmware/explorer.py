@@ -170,10 +170,11 @@ class Explorer:
         reachable = paths.reachable
         self.waypoints.update(self.map, layers.sight, reachable)
         # Our own target left W: its information is now observed. Seen from within
-        # target_seen_within_m (0: never), it is done with as if reached, and no waypoint is made there again. Without that, a
-        # waypoint in front of a door of the Intel lab (MinPos, seed 5) kept coming back with
-        # about 1100 bit after the robot had seen it from 0.6 m, and the robot drove back to
-        # it eight times (likely a few cells there turning unknown again, reopening a view).
+        # target_seen_within_m (0: never), it is done with as if reached, and no waypoint is
+        # made there again. Without that, a waypoint in front of a door of the Intel lab
+        # (MinPos, seed 5) kept coming back with about 1100 bit after the robot had seen it
+        # from 0.6 m, and the robot drove back to it eight times (likely a few cells there
+        # turning unknown again, reopening a view).
         t = self.target
         if t is not None and not t.from_team and math.hypot(t.x_m - x_m, t.y_m - y_m) < p.target_seen_within_m \
                 and not any((w.x_m, w.y_m) == (t.x_m, t.y_m) for w in self.waypoints.items):

@@ -33,7 +33,7 @@ class ExplorationParams:
     # (2 pi d_cam in cells: neighbouring rays one cell apart at d_cam).
     presence_keep_bit: float = 900.0
     # The robot's own current target (and waypoints within the cluster radius of it) is exempt
-    # from the presence rule. Off by default until its grid has run (see README, "Notes").
+    # from the presence rule. Off by default (README, "Notes and limits").
     presence_holds_target: bool = False
     team_view_rays: int = 600
     # A teammate's place this close to one of ours saw about what we saw from there
