@@ -159,9 +159,13 @@ def test_driving_into_a_maze_wall_is_blocked_and_counted():
     occ, clr = maze_map()
     cells = np.argwhere(occ.free)
     x, y = next(occ.center_of(int(r), int(c)) for r, c in cells[::97] if clr.disc_fits(*occ.center_of(int(r), int(c)), RADIUS_M))
-    # Long straight pushes in four directions: corridors are 2 m wide, so every one hits.
-    blocked = drive_and_check(occ, clr, BodyState(x, y, 0.0), [(0.8, 0.0, 30.0), (0.0, math.pi / 2, 1.0)] * 4)
-    assert blocked >= 4
+    # Long straight pushes from the start in eight directions: 24 m each, and corridors are
+    # 2 m wide, so all but those along a long corridor hit a wall (7 here: one runs along the
+    # corridor's length). A body stopped by a wall and turned along it slides, so the pushes
+    # start afresh, not from where the last one stopped.
+    blocked = sum(drive_and_check(occ, clr, BodyState(x, y, k * math.pi / 4), [(0.8, 0.0, 30.0)])
+                  for k in range(8))
+    assert blocked >= 6
 
 
 @settings(max_examples=200, deadline=None)
@@ -209,6 +213,22 @@ def test_stops_close_to_a_wall_and_may_still_turn():
     # Backing away works.
     back = step(res.state, -0.5, 0.0, 1.0, clr, RADIUS_M)
     assert not back.blocked and back.state.x_m == pytest.approx(res.state.x_m - 0.5)
+
+
+def test_a_body_stopped_by_a_wall_can_slide_along_it_and_leave_at_an_angle():
+    # A stop refined to a hair's breadth from the wall left the swept-path bound unable to
+    # prove any move safe but one straight away from it: a robot stayed glued for 600 s.
+    free = np.ones((100, 40), dtype=bool)
+    free[:, 30:] = False  # wall from x = 3.0 m
+    occ = OccupancyMap(free=free, resolution_m=0.1, origin_x_m=0.0, origin_y_m=0.0)
+    clr = ClearanceMap.from_map(occ)
+    for heading in (0.0, 0.3, -0.6, 1.2):   # head-on and glancing approaches
+        stop = step(BodyState(1.0, 5.0, heading), 0.8, 0.0, 10.0, clr, RADIUS_M)
+        assert stop.state.x_m > 2.7
+        assert stop.blocked and clr.clearance_m(stop.state.x_m, stop.state.y_m) > RADIUS_M
+        for leave in (math.pi / 2, -math.pi / 2, 2.0, -2.5):   # along the wall, and away at an angle
+            moved = step(BodyState(stop.state.x_m, stop.state.y_m, leave), 0.5, 0.0, 0.4, clr, RADIUS_M)
+            assert not moved.blocked and moved.travelled_m == pytest.approx(0.2)
 
 
 def test_bad_commands_are_rejected():

@@ -13,6 +13,9 @@ which bounds the clearance of every point the centre passes by R: the robot neve
 a wall, between samples included. Clearances are computed exactly near walls and
 replaced by a lower bound far from them, which keeps the guarantee.
 
+A move also stops where the clearance would fall to the radius plus half a sample spacing
+(a skin of 5 mm with the default spacing): from there, a move along or away from a straight
+wall always passes the check above, so a body that touched a wall can always leave it.
 A blocked move keeps the last accepted position (refined by bisection) and still applies
 the full commanded rotation: spinning in place never changes the disc, so it is always
 allowed; this is what a skid-steer base pushing against a wall does.
@@ -151,6 +154,13 @@ def advance(wall, clear_lb, ox, oy, res, radius_m, spacing_m, x, y, yaw, v, omeg
     if arc_m == 0.0:
         return x, y, yaw_end, 0.0, False
     cap = radius_m + 2.0 * spacing_m
+    # New positions keep half a sample spacing more than the radius from every wall. Closer,
+    # the swept-path bound (it needs (c_a - R) + (c_b - R) > h) can prove no next sample safe
+    # unless the move points almost straight away from the wall: a body that had stopped
+    # 5 um from a wall of the Intel lab could neither slide along it nor leave at an angle,
+    # and stayed there for 600 s. With the skin, a move along or away from a straight wall
+    # always passes.
+    skin_m = radius_m + 0.5 * spacing_m
     n = int(math.ceil(arc_m / spacing_m))
     h_s = dt_s / n
     h_m = arc_m / n
@@ -159,7 +169,7 @@ def advance(wall, clear_lb, ox, oy, res, radius_m, spacing_m, x, y, yaw, v, omeg
     for k in range(1, n + 1):
         qx, qy = _arc_point(x, y, yaw, v, omega, k * h_s)
         c = _capped_clearance(wall, clear_lb, ox, oy, res, qx, qy, cap)
-        if c > radius_m and c_prev + c > 2.0 * radius_m + h_m:
+        if c > skin_m and c_prev + c > 2.0 * radius_m + h_m:
             px, py, c_prev = qx, qy, c
             continue
         # Blocked between sample k-1 (accepted) and k: bisect for the last safe point.
@@ -170,7 +180,7 @@ def advance(wall, clear_lb, ox, oy, res, radius_m, spacing_m, x, y, yaw, v, omeg
             mid = 0.5 * (lo + hi)
             mx, my = _arc_point(x, y, yaw, v, omega, mid)
             cm = _capped_clearance(wall, clear_lb, ox, oy, res, mx, my, cap)
-            if cm > radius_m and c_lo + cm > 2.0 * radius_m + abs(v) * (mid - lo):
+            if cm > skin_m and c_lo + cm > 2.0 * radius_m + abs(v) * (mid - lo):
                 lo, c_lo, px, py = mid, cm, mx, my
             else:
                 hi = mid
