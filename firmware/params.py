@@ -60,6 +60,7 @@ class ExplorationParams:
     # close to it are never generated again, which bounds the mission (finite area).
     ban_radius_m: float = 1.5
     unreachable_strikes: int = 3             # planning cycles in a row without a route before a drop
+    unreachable_strike_interval_s: float = 1.0   # ... counted at most this often (the planning period)
     escape_radius_m: float = 0.8             # how far to look for a traversable cell to start from
     stuck_after_s: float = 0.5               # driving without moving this long marks an obstacle (0: off)
     stall_timeout_s: float = 20.0            # no progress towards the target for this long: drop it
