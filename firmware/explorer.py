@@ -138,7 +138,6 @@ class Explorer:
         self.team_places_emptied: list[tuple[float, float]] = []
         self._strikes: dict[tuple[float, float], int] = {}
         self._struck_us: dict[tuple[float, float], int] = {}   # when each target's last strike counted
-        self.bumps_forgotten = 0
         self._search_arrays: tuple | None = None   # GridPaths' arrays, reused plan after plan
         # Edges of the shared map that this robot's own map shows crossing a wall.
         self.blocked_edges: set[tuple[tuple[int, int], tuple[int, int]]] = set()
@@ -220,7 +219,6 @@ class Explorer:
         keys = {(c.x_m, c.y_m) for c in candidates}
         self._strikes = {k: v for k, v in self._strikes.items() if k in keys}
         self._struck_us = {k: v for k, v in self._struck_us.items() if k in keys}
-        routed_none = bool(candidates)
 
         while candidates:
             c = self._choose(candidates)
@@ -235,8 +233,8 @@ class Explorer:
             # No way there from here, not even along the topological map. A map glitch can
             # cause that for a moment, so it takes several cycles in a row to drop it for good,
             # and cycles count at most once per unreachable_strike_interval_s: a robot without
-            # a route replans every 0.2 s, and three strikes then took 0.35 s (Intel lab, one
-            # robot, seed 3: every target dropped at once, done at 48 % coverage).
+            # a route replans every 0.2 s, and three strikes took 0.35 s, too short for the
+            # map to change (Intel lab, one robot, seed 3: every target dropped at once).
             key = (c.x_m, c.y_m)
             last_us = self._struck_us.get(key)
             if last_us is None or now_us - last_us >= self.p.unreachable_strike_interval_s * 1e6:
@@ -248,14 +246,6 @@ class Explorer:
             candidates = [k for k in candidates if (k.x_m, k.y_m) != key and not self.waypoints.is_banned(k.x_m, k.y_m)]
             self.target = None
         self.target = None
-        if routed_none and self.map.bumps:
-            # Not one target has a route: more likely the robot is boxed in by what it felt
-            # (mark_obstacle_ahead places a bump 0.7 m wide wherever the wheels stall, which
-            # can close the door it came through) than is everything unreachable. Forget the
-            # bumps, as a navigation stack clears its costmap to recover; if a gap really is
-            # too narrow, the robot stalls there again, and the stall timeout drops the target.
-            self.map.bumps.clear()
-            self.bumps_forgotten += 1
         # Done only when no target is left at all; targets merely unreachable right now (still
         # collecting strikes) keep the robot planning.
         pending = any(v < self.p.unreachable_strikes for v in self._strikes.values())

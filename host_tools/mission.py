@@ -85,8 +85,7 @@ class MissionResult:
         """Per robot: how its targets ended (reached, seen from close by on the way, dropped
         as unreachable or stalled), waypoints cancelled by teammates' presence and shared-map
         targets found stale in its own map (both counted per planning cycle: a place counts
-        again each cycle it is found again), obstacles it bumped into, and how often it
-        forgot them because they left it no route to any target."""
+        again each cycle it is found again), and obstacles it bumped into."""
         ex = [a.explorer for a in self.agents]
         return {
             "targets_reached": [e.reached for e in ex],
@@ -97,7 +96,6 @@ class MissionResult:
             "waypoints_revived": [e.revived for e in ex],
             "team_targets_stale": [e.stale_team_targets for e in ex],
             "bumps": [a.bumps for a in self.agents],
-            "bumps_forgotten": [e.bumps_forgotten for e in ex],
         }
 
     def to_json(self) -> dict:

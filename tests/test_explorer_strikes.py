@@ -1,0 +1,54 @@
+"""What the planner does when it finds no route: strikes against a target count once per
+planning period however often it replans. Hand-built local map: a corridor along x, closed
+at its west end, open and unexplored beyond x = 35 m, with a wall across it."""
+from firmware.explorer import Explorer
+from firmware.local_map import KeyframeStore, LocalMap
+from firmware.params import ExplorationParams
+from firmware.team import STRATEGIES, TeamView
+from firmware.topo_map import TopoMap
+from firmware.waypoints import Waypoint
+
+P = ExplorationParams()
+ROBOT_XY = (10.0, 20.0)
+TARGET_XY = (30.0, 20.0)
+SECOND_US = 1_000_000
+
+
+def _explorer(wall_across_at_x_m: float) -> Explorer:
+    """Corridor y in [19, 21] m from x = 5 to 35 m, with a wall across it at the given x:
+    the open end lies beyond what the robot can reach."""
+    local_map = LocalMap(P, 20.0, 20.0, KeyframeStore(P.keyframe_bins))
+    lo = local_map.logodds
+    lo[:] = 0.0
+
+    def box(x0, x1, y0, y1, value):
+        i0, j0 = local_map.cell_of(x0, y0)
+        i1, j1 = local_map.cell_of(x1, y1)
+        lo[i0:i1 + 1, j0:j1 + 1] = value
+
+    box(4.8, 35.0, 18.8, 21.2, P.logodds_min)
+    box(4.8, 35.0, 18.8, 18.9, P.logodds_max)
+    box(4.8, 35.0, 21.1, 21.2, P.logodds_max)
+    box(4.8, 4.9, 18.8, 21.2, P.logodds_max)
+    box(wall_across_at_x_m, wall_across_at_x_m + 0.1, 18.8, 21.2, P.logodds_max)
+    ex = Explorer(P, local_map, TopoMap(P.d_build_m, P.d_connect_m), TeamView(0, STRATEGIES["minpos"]))
+    ex.waypoints.items = [Waypoint(*TARGET_XY, 5000.0)]
+    return ex
+
+
+def _in_w(ex: Explorer) -> bool:
+    return any((w.x_m, w.y_m) == TARGET_XY for w in ex.waypoints.items)
+
+
+def test_fast_replans_strike_an_unreachable_target_once_per_planning_period():
+    ex = _explorer(wall_across_at_x_m=25.0)
+    # A robot without a route replans every 0.2 s: five plans in one second are one strike.
+    for t_us in range(0, SECOND_US, 200_000):
+        plan = ex.plan(*ROBOT_XY, t_us)
+        assert plan.target is None and not plan.done
+    assert _in_w(ex) and ex._strikes == {TARGET_XY: 1}
+    plan = ex.plan(*ROBOT_XY, SECOND_US)
+    assert _in_w(ex) and not plan.done and ex._strikes == {TARGET_XY: 2}
+    plan = ex.plan(*ROBOT_XY, 2 * SECOND_US)
+    assert not _in_w(ex) and ex.dropped_unreachable == 1
+    assert plan.done, "a target unreachable for three planning periods is dropped for good"
