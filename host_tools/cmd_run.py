@@ -9,6 +9,7 @@ from pathlib import Path
 from firmware.team import STRATEGIES
 from hal.lora import PROFILES
 from host_tools.mission import MissionConfig, run_mission
+from host_tools.overrides import describe, parse_overrides, params_with
 from host_tools.progress import progress_bar
 
 DEFAULT_MAP = "cave:1"
@@ -28,6 +29,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--capture", type=Path, default=None, metavar="FILE",
                    help="record every frame on the air (for lorascout inspect)")
     p.add_argument("--start", type=_xy, default=None, metavar="X,Y", help="start position in metres (default: the map's)")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="overrides",
+                   help="change an explorer parameter (firmware/params.py); repeatable")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     p.add_argument("--out", type=Path, default=None, metavar="DIR", help="write mission.png and mission.json here")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -58,13 +61,15 @@ def main(args: argparse.Namespace) -> int:
         bar.set_postfix(coverage=f"{coverage:.3f}")
 
     try:
-        result = run_mission(cfg, progress)
+        overrides = parse_overrides(args.overrides)
+        result = run_mission(cfg, progress, params=params_with(overrides))
     except (ValueError, KeyError, OSError) as exc:
         bar.close()
         print(f"lorascout run: {exc}", file=sys.stderr)
         return 2
     bar.close()
     report = result.to_json()
+    report["params_overrides"] = dict(overrides)
     if args.out is not None:
         from host_tools.plots import plot_mission
 
@@ -98,4 +103,6 @@ def format_summary(r: dict) -> str:
         f"in a wall      {r['robots_in_wall']} robot-ticks",
         f"speed          {r['sim_speedup']:.1f}x real time, {r['ticks_per_s']:.0f} ticks/s, {r['wall_s']:.1f} s wall",
     ]
+    if r.get("params_overrides"):
+        lines.insert(2, f"parameters     {describe(r['params_overrides'].items())} (changed with --set)")
     return "\n".join(lines)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from firmware.team import STRATEGIES
 from hal.lora import PROFILES
+from host_tools.overrides import parse_overrides
 from host_tools.progress import progress_bar
 from host_tools.sweep import (PARTIAL_NAME, SweepSpec, code_fingerprint, load_partial, markdown, run_local, run_ray,
                                save, trial_key)
@@ -26,6 +27,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="repeat the trials of the strategies that use the LoRa link (greedy, minpos) on "
                         "these profiles and tabulate what they cost against --radio")
     p.add_argument("--max-sim-s", type=float, default=14400.0)
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="overrides",
+                   help="change an explorer parameter (firmware/params.py) for every trial; repeatable. "
+                        "Recorded with each trial and in the tables")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="local worker processes (default: cores)")
     p.add_argument("--ray", default=None, metavar="ADDRESS",
                    help="run on a Ray cluster instead ('local' starts one here)")
@@ -40,11 +44,17 @@ def main(args: argparse.Namespace) -> int:
     if args.robots < 1 or args.seeds < 1:
         print("lorascout sweep: --robots and --seeds must be at least 1", file=sys.stderr)
         return 2
+    try:
+        overrides = parse_overrides(args.overrides)
+    except ValueError as exc:
+        print(f"lorascout sweep: {exc}", file=sys.stderr)
+        return 2
     spec = SweepSpec(tuple(args.maps), tuple(args.strategies), args.robots, args.seeds, args.radio,
-                     args.max_sim_s, args.first_seed, tuple(r for r in args.also_radio if r != args.radio))
+                     args.max_sim_s, args.first_seed, tuple(r for r in args.also_radio if r != args.radio),
+                     overrides)
     trials = spec.trials()
     try:
-        wanted = {trial_key(c) for c in trials}
+        wanted = {trial_key(c, overrides) for c in trials}
         kept = load_partial(args.out) if args.resume else []
         code = code_fingerprint()
         earlier = [r for r in kept if trial_key(r) in wanted and r.get("code_sha256") == code]
@@ -52,7 +62,7 @@ def main(args: argparse.Namespace) -> int:
         print(f"lorascout sweep: {exc}", file=sys.stderr)
         return 2
     done_keys = {trial_key(r) for r in earlier}
-    todo = [c for c in trials if trial_key(c) not in done_keys]
+    todo = [c for c in trials if trial_key(c, overrides) not in done_keys]
     other_code = sum(1 for r in kept if trial_key(r) in wanted and r.get("code_sha256") != code)
     if args.resume:
         # Trials of other code stay in the file (nothing is thrown away) but count for nothing.
@@ -75,9 +85,9 @@ def main(args: argparse.Namespace) -> int:
 
         try:
             if args.ray is not None:
-                results = run_ray(todo, None if args.ray == "local" else args.ray, finished)
+                results = run_ray(todo, None if args.ray == "local" else args.ray, finished, overrides)
             else:
-                results = run_local(todo, args.jobs, finished)
+                results = run_local(todo, args.jobs, finished, overrides)
         except (ValueError, KeyError, OSError, RuntimeError) as exc:
             bar.close()
             print(f"lorascout sweep: {exc}", file=sys.stderr)

@@ -20,6 +20,7 @@ from firmware.comms.frame import frame_size_bytes
 from firmware.comms.schema import record_type
 from firmware.team import strategy as strategy_named
 from host_tools.mission import MissionConfig, run_mission
+from host_tools.overrides import Overrides, describe, params_with
 
 PATH_DECIMATION = 10   # keep every 10th tick of a path for the figures (0.5 s at 20 Hz)
 
@@ -37,6 +38,8 @@ class SweepSpec:
     # minpos): independent does not use the radio, and the dense baselines assume a link
     # without limits, so repeating them would measure nothing new.
     also_radios: tuple[str, ...] = ()
+    # Explorer parameters changed for every trial (`--set`), sorted by name.
+    overrides: Overrides = ()
 
     def lora_strategies(self) -> tuple[str, ...]:
         return tuple(s for s in self.strategies
@@ -82,12 +85,13 @@ def _code_only(source: bytes) -> bytes:
     return ast.dump(tree).encode()
 
 
-def run_trial(cfg: MissionConfig) -> dict:
+def run_trial(cfg: MissionConfig, overrides: Overrides = ()) -> dict:
     """One mission, reduced to what the tables and figures need (picklable for workers)."""
-    r = run_mission(cfg)
+    r = run_mission(cfg, params=params_with(overrides))
     report = r.to_json()
     report["map_spec"] = cfg.map_spec
     report["max_sim_s"] = cfg.max_sim_s
+    report["params_overrides"] = dict(overrides)
     report["paths_xy"] = [t[::PATH_DECIMATION, :2].round(2).tolist() for t in r.trajectories]
     return report
 
@@ -95,13 +99,16 @@ def run_trial(cfg: MissionConfig) -> dict:
 PARTIAL_NAME = "trials.partial.jsonl"   # every finished trial, paths included, as it finishes
 
 
-def trial_key(cfg_or_report: MissionConfig | dict) -> tuple:
-    """What identifies a trial in a grid (for resuming one)."""
+def trial_key(cfg_or_report: MissionConfig | dict, overrides: Overrides = ()) -> tuple:
+    """What identifies a trial in a grid (for resuming one): a mission configuration with the
+    sweep's parameter overrides, or a finished trial's report (which records its own; reports
+    from before overrides existed ran the defaults)."""
     if isinstance(cfg_or_report, MissionConfig):
         c = cfg_or_report
-        return (c.map_spec, c.strategy, c.radio, c.seed, c.robots, float(c.max_sim_s))
+        return (c.map_spec, c.strategy, c.radio, c.seed, c.robots, float(c.max_sim_s), tuple(overrides))
     r = cfg_or_report
-    return (r["map_spec"], r["strategy"], r["radio"], r["seed"], r["robots"], float(r["max_sim_s"]))
+    return (r["map_spec"], r["strategy"], r["radio"], r["seed"], r["robots"], float(r["max_sim_s"]),
+            tuple(sorted(r.get("params_overrides", {}).items())))
 
 
 def coverage_floor(coverage: float) -> float:
@@ -130,29 +137,31 @@ def load_partial(out: Path) -> list[dict]:
     return done
 
 
-def run_local(trials: list[MissionConfig], jobs: int, on_done: Callable[[dict], None]) -> list[dict]:
+def run_local(trials: list[MissionConfig], jobs: int, on_done: Callable[[dict], None],
+              overrides: Overrides = ()) -> list[dict]:
     results: list[dict | None] = [None] * len(trials)
     if jobs <= 1:
         for k, cfg in enumerate(trials):
-            results[k] = run_trial(cfg)
+            results[k] = run_trial(cfg, overrides)
             on_done(results[k])
         return results  # type: ignore[return-value]
     with ProcessPoolExecutor(max_workers=jobs) as pool:
-        futures = {pool.submit(run_trial, cfg): k for k, cfg in enumerate(trials)}
+        futures = {pool.submit(run_trial, cfg, overrides): k for k, cfg in enumerate(trials)}
         for f in as_completed(futures):
             results[futures[f]] = f.result()
             on_done(results[futures[f]])
     return results  # type: ignore[return-value]
 
 
-def run_ray(trials: list[MissionConfig], address: str, on_done: Callable[[dict], None]) -> list[dict]:
+def run_ray(trials: list[MissionConfig], address: str, on_done: Callable[[dict], None],
+            overrides: Overrides = ()) -> list[dict]:
     try:
         import ray
     except ImportError:
         raise RuntimeError("--ray needs the ray package: pip install 'lorascout[ray]'") from None
     ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
     remote = ray.remote(run_trial)
-    refs = [remote.remote(cfg) for cfg in trials]
+    refs = [remote.remote(cfg, overrides) for cfg in trials]
     index = {ref: k for k, ref in enumerate(refs)}
     results: list[dict | None] = [None] * len(trials)
     pending = list(refs)
@@ -266,8 +275,10 @@ def tables(spec: SweepSpec, results: list[dict]) -> dict:
 
 def markdown(t: dict) -> str:
     spec = t["spec"]
+    changed = describe(spec.get("overrides", ()))
     lines = [f"p_max [m] (median over {spec['seeds']} seeds of the longest robot path; {spec['robots']} robots, "
-             f"radio {spec['radio']}); in brackets: lowest coverage, missions complete",
+             f"radio {spec['radio']}" + (f"; explorer parameters changed: {changed}" if changed else "")
+             + "); in brackets: lowest coverage, missions complete",
              "", "| map | " + " | ".join(spec["strategies"]) + " |", "|---|" + "---|" * len(spec["strategies"])]
     for row in t["table3_p_max"]:
         cells = []
