@@ -20,18 +20,22 @@ SEEING = dataclasses.replace(P, target_seen_within_m=1.5)
 ME, OTHER = 0, 1
 
 
+def paint(local_map: LocalMap, x0: float, x1: float, y0: float, y1: float, logodds: float) -> None:
+    """Set the log-odds of the cells from (x0, y0) to (x1, y1) m, both corners included."""
+    i0, j0 = local_map.cell_of(x0, y0)
+    i1, j1 = local_map.cell_of(x1, y1)
+    local_map.logodds[i0:i1 + 1, j0:j1 + 1] = logodds
+
+
 def _explorer(door: bool = True, params: ExplorationParams = P) -> Explorer:
     """Corridor y in [19, 21] m from x = 5 to 35 m, walls along both sides, unknown beyond
     x = 35 m (the open end) and north of a 1 m door at x in [20, 21] m (or, without the door,
     closed everywhere but at the open end)."""
     local_map = LocalMap(P, 20.0, 20.0, KeyframeStore(P.keyframe_bins))
-    lo = local_map.logodds
-    lo[:] = 0.0
+    local_map.logodds[:] = 0.0
 
     def box(x0, x1, y0, y1, value):
-        i0, j0 = local_map.cell_of(x0, y0)
-        i1, j1 = local_map.cell_of(x1, y1)
-        lo[i0:i1 + 1, j0:j1 + 1] = value
+        paint(local_map, x0, x1, y0, y1, value)
 
     box(5.0, 35.0, 19.0, 21.0, P.logodds_min)        # corridor floor, seen free
     box(5.0, 35.0, 18.8, 18.9, P.logodds_max)        # south wall

@@ -1,12 +1,11 @@
 """What the planner does when it finds no route: strikes against a target count once per
-planning period however often it replans. Hand-built local map: a corridor along x, closed
-at its west end, open and unexplored beyond x = 35 m, with a wall across it."""
+planning period however often it replans. Hand-built local map: the presence tests' closed
+corridor, with a wall across it."""
 from firmware.explorer import Explorer
-from firmware.local_map import KeyframeStore, LocalMap
 from firmware.params import ExplorationParams
-from firmware.team import STRATEGIES, TeamView
-from firmware.topo_map import TopoMap
 from firmware.waypoints import Waypoint
+from tests.test_explorer_presence import _explorer as corridor
+from tests.test_explorer_presence import paint
 
 P = ExplorationParams()
 ROBOT_XY = (10.0, 20.0)
@@ -15,23 +14,11 @@ SECOND_US = 1_000_000
 
 
 def _explorer(wall_across_at_x_m: float) -> Explorer:
-    """Corridor y in [19, 21] m from x = 5 to 35 m, with a wall across it at the given x:
-    the open end lies beyond what the robot can reach."""
-    local_map = LocalMap(P, 20.0, 20.0, KeyframeStore(P.keyframe_bins))
-    lo = local_map.logodds
-    lo[:] = 0.0
-
-    def box(x0, x1, y0, y1, value):
-        i0, j0 = local_map.cell_of(x0, y0)
-        i1, j1 = local_map.cell_of(x1, y1)
-        lo[i0:i1 + 1, j0:j1 + 1] = value
-
-    box(4.8, 35.0, 18.8, 21.2, P.logodds_min)
-    box(4.8, 35.0, 18.8, 18.9, P.logodds_max)
-    box(4.8, 35.0, 21.1, 21.2, P.logodds_max)
-    box(4.8, 4.9, 18.8, 21.2, P.logodds_max)
-    box(wall_across_at_x_m, wall_across_at_x_m + 0.1, 18.8, 21.2, P.logodds_max)
-    ex = Explorer(P, local_map, TopoMap(P.d_build_m, P.d_connect_m), TeamView(0, STRATEGIES["minpos"]))
+    """The closed corridor of the presence tests (y in [19, 21] m from x = 5 to 35 m, open
+    and unexplored beyond x = 35 m) with a wall across it at the given x: the open end lies
+    beyond what the robot can reach. The target: a waypoint near the open end."""
+    ex = corridor(door=False)
+    paint(ex.map, wall_across_at_x_m, wall_across_at_x_m + 0.1, 18.8, 21.2, P.logodds_max)
     ex.waypoints.items = [Waypoint(*TARGET_XY, 5000.0)]
     return ex
 
