@@ -37,6 +37,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resume", action="store_true",
                    help=f"keep the trials an interrupted run of the same sweep finished (OUT/{PARTIAL_NAME}) "
                         "with the same code (firmware, HAL, world, radio, mission) and run only the rest")
+    p.add_argument("--tables-of-code", default=None, metavar="FINGERPRINT",
+                   help=f"run nothing: tabulate the grid's trials in OUT/{PARTIAL_NAME} that ran the code "
+                        "whose fingerprint (code_sha256) starts with this, e.g. an older grid after a change "
+                        "to the tables; every trial of the grid must be there")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -53,6 +57,8 @@ def main(args: argparse.Namespace) -> int:
                      args.max_sim_s, args.first_seed, tuple(r for r in args.also_radio if r != args.radio),
                      overrides)
     trials = spec.trials()
+    if args.tables_of_code is not None:
+        return _tabulate_earlier(args.out, spec, {trial_key(c, overrides) for c in trials}, args.tables_of_code)
     try:
         wanted = {trial_key(c, overrides) for c in trials}
         kept = load_partial(args.out) if args.resume else []
@@ -96,4 +102,29 @@ def main(args: argparse.Namespace) -> int:
     t = save(args.out, spec, earlier + results)
     print(markdown(t))
     print(f"wrote {args.out}/tables.md, tables.json, trials.csv, trials.jsonl and paths_*.png")
+    return 0
+
+
+def _tabulate_earlier(out: Path, spec: SweepSpec, wanted: set[tuple], fingerprint: str) -> int:
+    """The tables of a grid whose trials all ran earlier, on the code `fingerprint` names."""
+    if len(fingerprint) < 8:
+        print("lorascout sweep: --tables-of-code needs at least 8 hex digits of a fingerprint", file=sys.stderr)
+        return 2
+    try:
+        kept = load_partial(out)
+    except (ValueError, OSError) as exc:
+        print(f"lorascout sweep: {exc}", file=sys.stderr)
+        return 2
+    found = {}
+    for r in kept:
+        if str(r.get("code_sha256", "")).startswith(fingerprint) and trial_key(r) in wanted:
+            found.setdefault(trial_key(r), r)
+    if len(found) < len(wanted):
+        print(f"lorascout sweep: {out / PARTIAL_NAME} holds {len(found)} of the grid's {len(wanted)} trials "
+              f"of code {fingerprint}; tables need them all", file=sys.stderr)
+        return 2
+    t = save(out, spec, list(found.values()))
+    print(markdown(t))
+    print(f"wrote {out}/tables.md, tables.json, trials.csv, trials.jsonl and paths_*.png "
+          f"from {len(found)} trials of code {fingerprint}")
     return 0

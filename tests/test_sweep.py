@@ -4,7 +4,8 @@ import json
 
 import pytest
 
-from host_tools.sweep import SweepSpec, code_fingerprint, coverage_floor, markdown, p_max, run_local, save
+from host_tools.sweep import (SweepSpec, code_fingerprint, coverage_floor, markdown, p_max, ratio_interval, run_local,
+                               save)
 
 SPEC = SweepSpec(maps=("cave:4:40x40",), strategies=("minpos", "independent"), robots=2, seeds=2,
                  radio="ideal-100Bps", max_sim_s=40.0, also_radios=("eu868-g3",))
@@ -13,6 +14,18 @@ SPEC = SweepSpec(maps=("cave:4:40x40",), strategies=("minpos", "independent"), r
 def test_p_max_is_the_median_of_the_longest_paths():
     trials = [{"path_length_m": [1.0, 5.0]}, {"path_length_m": [7.0, 2.0]}, {"path_length_m": [3.0, 4.0]}]
     assert p_max(trials) == 5.0
+
+
+def test_the_ratio_interval_is_a_seeded_bootstrap_of_the_ratio_of_medians():
+    same = [300.0, 410.0, 520.0, 380.0, 450.0]
+    assert ratio_interval(same, same) == pytest.approx((0.7, 1.0 / 0.7), rel=0.25)   # a draw, both ways
+    assert ratio_interval([5.0] * 10, [4.0] * 10) == pytest.approx((1.25, 1.25))
+    lo, hi = ratio_interval([100.0, 110.0, 120.0, 105.0], [200.0, 210.0, 190.0, 205.0])
+    assert 0.45 < lo <= 105 / 202.5 <= hi < 0.65        # far apart: a narrow interval around the ratio
+    assert ratio_interval(same, [v * 1.1 for v in same]) == ratio_interval(same, [v * 1.1 for v in same])   # seeded
+    wide = ratio_interval([100.0, 400.0, 800.0], [400.0, 410.0, 420.0])
+    assert wide[0] < 0.5 and wide[1] > 1.5                                  # spread widens it
+    assert ratio_interval(same, same, level=0.5)[1] < ratio_interval(same, same)[1]
 
 
 def test_local_sweep_writes_tables_and_figures(tmp_path):
@@ -30,6 +43,8 @@ def test_local_sweep_writes_tables_and_figures(tmp_path):
     assert (cmp["strategy"], cmp["reference"]) == ("minpos", "independent")
     assert cmp["ratio"] == round(row["minpos"]["p_max_m"] / row["independent"]["p_max_m"], 3)
     assert cmp["holds"] == (cmp["ratio"] <= 0.70)
+    lo, hi = cmp["ratio_interval_90"]
+    assert lo <= cmp["ratio"] <= hi
     (cost,) = t["radio_cost"]
     g3 = sorted(max(r["path_length_m"]) for r in results if r["radio"] == "eu868-g3")
     assert cost["p_max_m"] == round((g3[0] + g3[1]) / 2, 1) and cost["duty_cycle_violations"] == 0
@@ -116,3 +131,27 @@ def test_code_fingerprint_ignores_docstrings_comments_and_layout_only(tmp_path):
     assert write('"""Module."""\ndef f(x):\n    return 2 * x\n') == base
     assert write('"""Module."""\ndef f(x):\n    """Twice x."""\n    return 3 * x\n') != base
     assert write('"""Module."""\ndef f(x):\n    """Twice x."""\n    return "2 * x"\n') != base
+
+
+def test_an_earlier_grid_is_tabulated_again_without_running_anything(tmp_path, capsys):
+    from host_tools.cli import main
+    from host_tools.sweep import PARTIAL_NAME
+
+    argv = ["sweep", "--maps", "cave:4:40x40", "--strategies", "minpos", "--robots", "2", "--seeds", "1",
+            "--max-sim-s", "20", "--jobs", "1", "--quiet", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    partial = tmp_path / PARTIAL_NAME
+    (report,) = [json.loads(line) for line in partial.read_text().splitlines()]
+    # As if the code had changed since: the trial is kept, stamped with the old fingerprint.
+    partial.write_text(json.dumps(dict(report, code_sha256="ab12" * 16)) + "\n")
+    (tmp_path / "tables.json").unlink()
+    capsys.readouterr()
+    assert main(argv + ["--tables-of-code", "ab12ab12"]) == 0
+    assert "from 1 trials of code ab12ab12" in capsys.readouterr().out
+    t = json.loads((tmp_path / "tables.json").read_text())
+    assert t["table3_p_max"][0]["minpos"]["p_max_m"] == round(max(report["path_length_m"]), 1)
+    assert partial.read_text().count("\n") == 1, "nothing ran, nothing was added"
+    assert main(argv + ["--tables-of-code", "cd34cd34"]) == 2
+    assert "holds 0 of the grid's 1 trials of code cd34cd34; tables need them all" in capsys.readouterr().err
+    assert main(argv + ["--tables-of-code", "ab12"]) == 2
+    assert "at least 8 hex digits" in capsys.readouterr().err
