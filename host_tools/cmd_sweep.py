@@ -77,6 +77,7 @@ def main(args: argparse.Namespace) -> int:
               file=sys.stderr)
     args.out.mkdir(parents=True, exist_ok=True)
     bar = progress_bar(len(todo), "sweep", "trial", args.quiet)
+    counted = {"n": 0}
     # Each finished trial goes to disk at once: an interrupted sweep loses only what ran.
     with open(args.out / PARTIAL_NAME, "w") as partial:
         for report in kept:            # rewritten whole: a line cut short is gone, not appended to
@@ -88,6 +89,14 @@ def main(args: argparse.Namespace) -> int:
             partial.write(json.dumps(report, sort_keys=True) + "\n")
             partial.flush()
             bar.update(1)
+            if bar.disable and not args.quiet:
+                # No terminal (a grid left running for hours with its output in a log): a line
+                # per trial instead of the bar.
+                counted["n"] += 1
+                print(f"trial {counted['n']}/{len(todo)}: {report['strategy']} on {report['map']} seed "
+                      f"{report['seed']} ({report['radio']}): p_max {max(report['path_length_m']):.0f} m, "
+                      f"coverage {report['coverage']:.4f}, {report['termination']}, {report['wall_s']:.0f} s",
+                      file=sys.stderr, flush=True)
 
         try:
             if args.ray is not None:

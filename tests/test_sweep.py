@@ -155,3 +155,16 @@ def test_an_earlier_grid_is_tabulated_again_without_running_anything(tmp_path, c
     assert "holds 0 of the grid's 1 trials of code cd34cd34; tables need them all" in capsys.readouterr().err
     assert main(argv + ["--tables-of-code", "ab12"]) == 2
     assert "at least 8 hex digits" in capsys.readouterr().err
+
+
+def test_without_a_terminal_each_trial_is_a_line_on_stderr(tmp_path, capsys):
+    from host_tools.cli import main
+
+    argv = ["sweep", "--maps", "cave:4:40x40", "--strategies", "minpos", "--robots", "2", "--seeds", "2",
+            "--max-sim-s", "20", "--jobs", "1", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "trial 1/2: minpos on cave:4:40x40 seed 0 (ideal-100Bps): p_max " in err
+    assert "trial 2/2: minpos on cave:4:40x40 seed 1 (ideal-100Bps): p_max " in err
+    assert main(argv + ["--quiet"]) == 0
+    assert "trial 1/2" not in capsys.readouterr().err
