@@ -16,6 +16,14 @@ class PathFollower:
         self.max_omega_radps = max_omega_radps
         self.path_xy = np.zeros((0, 2))
         self._next = 0
+        self._closely_for_m = 0.0                       # travel left in follow_closely
+        self._last_xy: tuple[float, float] | None = None
+
+    def follow_closely(self, distance_m: float) -> None:
+        """For the next distance_m of travel, steer for the next point of the path (one map
+        cell ahead) instead of one look-ahead ahead: the shortcut pure pursuit takes through
+        a path's bends can press the body against the very post the path bends around."""
+        self._closely_for_m = distance_m
 
     def set_path(self, path_xy: np.ndarray) -> None:
         self.path_xy = path_xy
@@ -31,8 +39,12 @@ class PathFollower:
     def command(self, x_m: float, y_m: float, yaw_rad: float) -> tuple[float, float]:
         """(v, omega) towards the look-ahead point; (0, 0) at the end of the path."""
         pts = self.path_xy
+        if self._last_xy is not None and self._closely_for_m > 0.0:
+            self._closely_for_m -= math.hypot(x_m - self._last_xy[0], y_m - self._last_xy[1])
+        self._last_xy = (x_m, y_m)
+        lookahead_m = self.p.resolution_m if self._closely_for_m > 0.0 else self.p.lookahead_m
         # Points already within the look-ahead distance are passed.
-        while self._next < len(pts) - 1 and math.hypot(pts[self._next, 0] - x_m, pts[self._next, 1] - y_m) < self.p.lookahead_m:
+        while self._next < len(pts) - 1 and math.hypot(pts[self._next, 0] - x_m, pts[self._next, 1] - y_m) < lookahead_m:
             self._next += 1
         if self._next >= len(pts):
             return 0.0, 0.0

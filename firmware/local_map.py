@@ -73,6 +73,15 @@ def bin_scan_by_bearing(yaw_rad: float, angle_min_rad: float, angle_increment_ra
     return out
 
 
+def something_within(ranges_by_bearing_m: np.ndarray, yaw_rad: float, reach_m: float) -> bool:
+    """Whether a binned scan shows a return within reach_m in the half-plane ahead of the
+    heading yaw_rad."""
+    bins = len(ranges_by_bearing_m)
+    bearing = np.arange(bins) * (2 * math.pi / bins)
+    r = np.asarray(ranges_by_bearing_m)
+    return bool(((r > 0.0) & (r <= reach_m) & (np.cos(bearing - yaw_rad) > 0.0)).any())
+
+
 # A keyframe on the mesh link: sender u8, x_cm i32, y_cm i32, range_max_cm u16, bins u16,
 # then one u16 range in cm per bin (little-endian). 13 + 2 * bins bytes: 733 B at 360 bins.
 _KEYFRAME_HEAD = struct.Struct("<BiiHH")

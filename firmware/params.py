@@ -63,6 +63,7 @@ class ExplorationParams:
     unreachable_strike_interval_s: float = 1.0   # ... counted at most this often (the planning period)
     escape_radius_m: float = 0.8             # how far to look for a traversable cell to start from
     stuck_after_s: float = 0.5               # driving without moving this long marks an obstacle (0: off)
+    follow_closely_after_stall_m: float = 1.0   # ... or, if the LiDAR shows it, path points are not cut this far
     stall_timeout_s: float = 20.0            # no progress towards the target for this long: drop it
     # Log-odds occupancy update.
     logodds_hit: float = 1.2

@@ -1,5 +1,6 @@
 """The firmware against a scripted HAL: it terminates in a closed room, and a robot whose
-wheels do not move marks what blocks it, drops its targets for good, and still terminates."""
+wheels do not move marks what blocks it (unless its LiDAR shows it), drops its targets for
+good, and still terminates."""
 import math
 
 import numpy as np
@@ -80,6 +81,17 @@ def test_a_robot_that_cannot_move_marks_the_obstacle_drops_targets_and_stops():
     e = agent.explorer
     assert e.dropped_stalled + e.dropped_unreachable >= 1
     assert agent.done, "targets that cannot be reached must be dropped for good, not retried forever"
+
+
+def test_a_stall_against_something_the_lidar_shows_marks_no_bump_and_follows_closely():
+    ranges = np.full(360, 3.0)
+    ranges[150:210] = 10.0          # the corridor leading away, straight ahead (beam 180)
+    ranges[255:265] = 0.3           # and a post touching the body on its left, a little ahead
+    agent = run(ScriptedHal(ranges), 1200)
+    assert agent.bumps >= 1, "the wheels stalled"
+    assert agent.local_map.bumps == [], "the map has the post already: no bump closes the corridor"
+    assert agent.follower._closely_for_m > 0.0
+    assert agent.done, "a robot that really cannot move still drops its targets for good and stops"
 
 
 def test_information_at_a_vertex_falls_and_rises_again_with_a_new_revision_each_time():
