@@ -57,10 +57,10 @@ def main(args: argparse.Namespace) -> int:
                      args.max_sim_s, args.first_seed, tuple(r for r in args.also_radio if r != args.radio),
                      overrides)
     trials = spec.trials()
+    wanted = {trial_key(c, overrides) for c in trials}
     if args.tables_of_code is not None:
-        return _tabulate_earlier(args.out, spec, {trial_key(c, overrides) for c in trials}, args.tables_of_code)
+        return _tabulate_earlier(args.out, spec, wanted, args.tables_of_code)
     try:
-        wanted = {trial_key(c, overrides) for c in trials}
         kept = load_partial(args.out) if args.resume else []
         code = code_fingerprint()
         earlier = [r for r in kept if trial_key(r) in wanted and r.get("code_sha256") == code]
@@ -126,8 +126,9 @@ def _tabulate_earlier(out: Path, spec: SweepSpec, wanted: set[tuple], fingerprin
         return 2
     found = {}
     for r in kept:
-        if str(r.get("code_sha256", "")).startswith(fingerprint) and trial_key(r) in wanted:
-            found.setdefault(trial_key(r), r)
+        key = trial_key(r)
+        if str(r.get("code_sha256", "")).startswith(fingerprint) and key in wanted:
+            found.setdefault(key, r)
     if len(found) < len(wanted):
         print(f"lorascout sweep: {out / PARTIAL_NAME} holds {len(found)} of the grid's {len(wanted)} trials "
               f"of code {fingerprint}; tables need them all", file=sys.stderr)
