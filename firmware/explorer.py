@@ -136,8 +136,8 @@ class Explorer:
         # Team places (W_inf vertices, metres) this robot found nothing at since the agent
         # last collected them: stale in its own map, or reached. Its word there settles them.
         self.team_places_emptied: list[tuple[float, float]] = []
-        self._strikes: dict[tuple[float, float], int] = {}
-        self._struck_us: dict[tuple[float, float], int] = {}   # when each target's last strike counted
+        # Per target without a route: (strikes, when the last one counted).
+        self._strikes: dict[tuple[float, float], tuple[int, int]] = {}
         self._search_arrays: tuple | None = None   # GridPaths' arrays, reused plan after plan
         # Edges of the shared map that this robot's own map shows crossing a wall.
         self.blocked_edges: set[tuple[tuple[int, int], tuple[int, int]]] = set()
@@ -218,14 +218,12 @@ class Explorer:
         # Strikes only count for targets that are still targets.
         keys = {(c.x_m, c.y_m) for c in candidates}
         self._strikes = {k: v for k, v in self._strikes.items() if k in keys}
-        self._struck_us = {k: v for k, v in self._struck_us.items() if k in keys}
 
         while candidates:
             c = self._choose(candidates)
             path = self._route(c, paths, topo_src, topo_dist, topo_parent, x_m, y_m)
             if path is not None:
                 self._strikes.pop((c.x_m, c.y_m), None)
-                self._struck_us.pop((c.x_m, c.y_m), None)
                 self._track_progress(c, now_us)
                 if self.target is None:
                     return Plan(None, np.zeros((0, 2)), False)
@@ -236,11 +234,11 @@ class Explorer:
             # a route replans every 0.2 s, and three strikes took 0.35 s, too short for the
             # map to change (Intel lab, one robot, seed 3: every target dropped at once).
             key = (c.x_m, c.y_m)
-            last_us = self._struck_us.get(key)
+            count, last_us = self._strikes.get(key, (0, None))
             if last_us is None or now_us - last_us >= self.p.unreachable_strike_interval_s * 1e6:
-                self._strikes[key] = self._strikes.get(key, 0) + 1
-                self._struck_us[key] = now_us
-            if self._strikes[key] >= self.p.unreachable_strikes:
+                count, last_us = count + 1, now_us
+                self._strikes[key] = (count, last_us)
+            if count >= self.p.unreachable_strikes:
                 self.waypoints.ban(c.x_m, c.y_m)
                 self.dropped_unreachable += 1
             candidates = [k for k in candidates if (k.x_m, k.y_m) != key and not self.waypoints.is_banned(k.x_m, k.y_m)]
@@ -248,7 +246,7 @@ class Explorer:
         self.target = None
         # Done only when no target is left at all; targets merely unreachable right now (still
         # collecting strikes) keep the robot planning.
-        pending = any(v < self.p.unreachable_strikes for v in self._strikes.values())
+        pending = any(count < self.p.unreachable_strikes for count, _ in self._strikes.values())
         return Plan(None, np.zeros((0, 2)), not pending)
 
     # --- targets (eq. 5) --------------------------------------------------------------
@@ -309,8 +307,9 @@ class Explorer:
         t = self.target
         if t is not None and not t.from_team and self.p.presence_holds_target:
             r2 = self.p.waypoint_cluster_radius_m ** 2
-            held = [w for w in items if (w.x_m - t.x_m) ** 2 + (w.y_m - t.y_m) ** 2 < r2]
-            items = [w for w in items if (w.x_m - t.x_m) ** 2 + (w.y_m - t.y_m) ** 2 >= r2]
+            near_target = [(w.x_m - t.x_m) ** 2 + (w.y_m - t.y_m) ** 2 < r2 for w in items]
+            held = [w for w, near in zip(items, near_target) if near]
+            items = [w for w, near in zip(items, near_target) if not near]
         keep, dropped = self._split_by_team_view(items, sight, self._places_of_others())
         self.waypoints.items = held + keep
         self.dropped_by_presence += len(dropped)

@@ -160,7 +160,7 @@ def advance(wall, clear_lb, ox, oy, res, radius_m, spacing_m, x, y, yaw, v, omeg
     # 5 um from a wall of the Intel lab could neither slide along it nor leave at an angle,
     # and stayed there for 600 s. With the skin, a move along or away from a straight wall
     # always passes.
-    skin_m = radius_m + 0.5 * spacing_m
+    stop_clearance_m = radius_m + 0.5 * spacing_m
     n = int(math.ceil(arc_m / spacing_m))
     h_s = dt_s / n
     h_m = arc_m / n
@@ -169,7 +169,7 @@ def advance(wall, clear_lb, ox, oy, res, radius_m, spacing_m, x, y, yaw, v, omeg
     for k in range(1, n + 1):
         qx, qy = _arc_point(x, y, yaw, v, omega, k * h_s)
         c = _capped_clearance(wall, clear_lb, ox, oy, res, qx, qy, cap)
-        if c > skin_m and c_prev + c > 2.0 * radius_m + h_m:
+        if c > stop_clearance_m and c_prev + c > 2.0 * radius_m + h_m:
             px, py, c_prev = qx, qy, c
             continue
         # Blocked between sample k-1 (accepted) and k: bisect for the last safe point.
@@ -180,7 +180,7 @@ def advance(wall, clear_lb, ox, oy, res, radius_m, spacing_m, x, y, yaw, v, omeg
             mid = 0.5 * (lo + hi)
             mx, my = _arc_point(x, y, yaw, v, omega, mid)
             cm = _capped_clearance(wall, clear_lb, ox, oy, res, mx, my, cap)
-            if cm > skin_m and c_lo + cm > 2.0 * radius_m + abs(v) * (mid - lo):
+            if cm > stop_clearance_m and c_lo + cm > 2.0 * radius_m + abs(v) * (mid - lo):
                 lo, c_lo, px, py = mid, cm, mx, my
             else:
                 hi = mid
