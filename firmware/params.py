@@ -36,11 +36,15 @@ class ExplorationParams:
     # from the presence rule. Off by default (README, "Notes and limits").
     presence_holds_target: bool = False
     team_view_rays: int = 600
-    # A teammate's place this close to one of ours saw about what we saw from there
-    # (Explorer._revive_shared_frontiers, the presence rule's deadlock breaker; 0: off).
-    # Off by default: with 2.5 m it saved the one mission that deadlocked (cave greedy seed
-    # 4, 51 % coverage) but cost the cave's other missions 20 to 40 % of p_max.
-    shared_view_m: float = 0.0
+    # The presence rule's deadlock breaker (Explorer._revive_shared_frontiers; 0: off): a
+    # teammate's place within shared_view_m of one of ours saw about what we saw from there,
+    # and a waypoint that a teammate stood within revive_clear_m of was seen by it. Only
+    # waypoints holding revive_min_bit (about 15 m2 unseen) are taken back: the deadlocked
+    # frontiers held 13000 to 15000 bit, the waypoints wrongly taken back 1100 to 1500 bit
+    # (cave:1:60x60, Intel lab; README, "Notes and limits").
+    shared_view_m: float = 2.5
+    revive_clear_m: float = 3.0
+    revive_min_bit: float = 4000.0
     # Robot body and navigation.
     robot_radius_m: float = 0.25
     safety_margin_m: float = 0.07            # traversable cells keep radius + margin from walls
