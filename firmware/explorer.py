@@ -347,7 +347,8 @@ class Explorer:
         Never a waypoint that a teammate stood within revive_clear_m of: it saw what the
         waypoint promised. In the cave's deadlock the nearest teammate place was 8.4 m from
         the frontier; the waypoints the breaker took back without this test on seed 0 (p_max
-        884 m instead of 452 m) mostly had one within 1.5 m.
+        884 m instead of 452 m with the presence rule's 900 bit as the threshold below, 590 m
+        with revive_min_bit) mostly had one within 1.5 m.
         And only a waypoint holding revive_min_bit, a region worth the trip: with the
         presence rule's own 900 bit, the last robot of seed 1 drove 169 m more for 1143 bit
         and found nothing the team had not seen."""

@@ -40,8 +40,8 @@ class ExplorationParams:
     # teammate's place within shared_view_m of one of ours saw about what we saw from there,
     # and a waypoint that a teammate stood within revive_clear_m of was seen by it. Only
     # waypoints holding revive_min_bit (about 15 m2 unseen) are taken back: the deadlocked
-    # frontiers held 13000 to 15000 bit, the waypoints wrongly taken back 1100 to 1500 bit
-    # (cave:1:60x60, Intel lab; README, "Notes and limits").
+    # frontier held 13146 bit, the waypoints wrongly taken back 1100 to 1500 bit (cave,
+    # maze_b, Intel lab; README, "Notes and limits").
     shared_view_m: float = 2.5
     revive_clear_m: float = 3.0
     revive_min_bit: float = 4000.0
