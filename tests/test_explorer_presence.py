@@ -103,8 +103,10 @@ def test_passing_the_door_of_a_room_does_not_cancel_the_room():
     assert _apply(ex, (20.5, 21.6), (30.0, 20.0)) == [(20.5, 21.6)]
 
 
-def _both_before_a_pocket(params: ExplorationParams, my_place_x_m: float,
-                          teammate_place_x_m: float = 31.0) -> Explorer:
+TEAMMATE_PLACE_X_M = 31.0
+
+
+def _both_before_a_pocket(params: ExplorationParams, my_place_x_m: float) -> Explorer:
     """The closed corridor continued by an unexplored pocket (x in [35, 39] m, walls known
     around it), with a place of ours and one of the teammate's in the corridor. The
     teammate's view from its place covers the pocket, so the presence rule drops the
@@ -114,7 +116,7 @@ def _both_before_a_pocket(params: ExplorationParams, my_place_x_m: float,
     paint(ex.map, 35.0, 39.0, 21.1, 21.2, P.logodds_max)
     paint(ex.map, 38.9, 39.0, 18.8, 21.2, P.logodds_max)
     _report(ex, ME, my_place_x_m, 20.0, 0)
-    _report(ex, OTHER, teammate_place_x_m, 20.0, 0)
+    _report(ex, OTHER, TEAMMATE_PLACE_X_M, 20.0, 0)
     return ex
 
 
@@ -139,7 +141,7 @@ def test_the_last_robot_takes_back_a_frontier_each_left_to_the_others(teammate_a
     else:
         assert not plan.done and plan.target is not None and ex.revived > 0
         revived = [w for w in ex.waypoints.items if w in ex._given_up]
-        assert revived and all(abs(w.x_m - 31.0) >= P.revive_clear_m for w in revived)
+        assert revived and all(abs(w.x_m - TEAMMATE_PLACE_X_M) >= P.revive_clear_m for w in revived)
         assert all(w.e_bit >= BREAKING.revive_min_bit for w in revived)
 
 
