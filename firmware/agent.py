@@ -18,7 +18,7 @@ from firmware.comms.link import LinkLayer, TdmaSchedule
 from firmware.comms.schema import e_inf_bit_to_code
 from firmware.controller import PathFollower
 from firmware.explorer import Explorer
-from firmware.local_map import (KeyframeStore, LocalMap, bin_scan_by_bearing, decode_keyframe, encode_keyframe,
+from firmware.local_map import (BinnedScan, KeyframeStore, LocalMap, bin_scan, decode_keyframe, encode_keyframe,
                                 something_within)
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task, TaskProfiler
@@ -54,7 +54,7 @@ class ExplorerAgent:
         self.status = "starting"
         self.ticks = 0
         self.scans = 0
-        self._last_scan_binned: tuple[float, float, np.ndarray, float] | None = None
+        self._last_scan_binned: BinnedScan | None = None
         self._last_vertex_xy: tuple[float, float] | None = None
         self._last_plan_us = -10**12
         self._last_cmd_v = 0.0
@@ -117,11 +117,10 @@ class ExplorerAgent:
 
     def _on_keyframe(self, message: bytes) -> None:
         kf = decode_keyframe(message)
-        if kf is None or len(kf[3]) != self.keyframes.bins:
+        if kf is None or len(kf[1].ranges_m) != self.keyframes.bins:
             return
-        sender, x, y, ranges, range_max = kf
-        self.keyframes.add(x, y, ranges, range_max)
-        self.local_map.integrate_keyframe(x, y, ranges, range_max)
+        self.keyframes.add(kf[1])
+        self.local_map.integrate_keyframe(kf[1])
 
     def _task_lidar(self, now_us: int) -> None:
         scan: LidarScan | None = self.hal.lidar.latest_scan()
@@ -131,12 +130,9 @@ class ExplorerAgent:
         self.local_map.follow(pose.x_m, pose.y_m)
         self.local_map.integrate_scan(pose.x_m, pose.y_m, pose.yaw_rad, scan.angle_min_rad,
                                       scan.angle_increment_rad, scan.ranges_m, scan.range_max_m)
-        self._last_scan_binned = (
-            pose.x_m, pose.y_m,
-            bin_scan_by_bearing(pose.yaw_rad, scan.angle_min_rad, scan.angle_increment_rad,
-                                scan.ranges_m, self.p.keyframe_bins),
-            scan.range_max_m,
-        )
+        self._last_scan_binned = bin_scan(pose.x_m, pose.y_m, pose.yaw_rad, scan.angle_min_rad,
+                                          scan.angle_increment_rad, scan.ranges_m, scan.range_max_m,
+                                          self.p.keyframe_bins)
         self.scans += 1
 
     def _task_control(self, now_us: int) -> None:
@@ -157,8 +153,7 @@ class ExplorerAgent:
             # bump there, 0.7 m wide, closed the only way out of a room of the Intel lab: one
             # robot, seed 3, ended at 48 % coverage.) Then replan.
             reach_m = self.p.robot_radius_m + self.p.resolution_m
-            _, _, ranges, _ = self._last_scan_binned
-            touching = something_within(ranges, pose.yaw_rad, reach_m)
+            touching = something_within(self._last_scan_binned, pose.yaw_rad, reach_m)
             if not touching:
                 self.local_map.mark_obstacle_ahead(pose.x_m, pose.y_m, pose.yaw_rad, reach_m)
             self.bumps += 1
@@ -238,13 +233,13 @@ class ExplorerAgent:
             return
         if self._last_scan_binned is None or self._last_plan_us < 0:
             return  # the record carries the information here, known only after a first plan
-        kx, ky, ranges, range_max = self._last_scan_binned
+        scan = self._last_scan_binned
         # Places the robot passes again keep their first keyframe: keyframes then grow with
         # the area explored, not with the distance driven, and so does restoring the window.
-        if not self.keyframes.has_within(kx, ky, self.p.keyframe_spacing_m):
-            self.keyframes.add(kx, ky, ranges, range_max)
+        if not self.keyframes.has_within(scan.x_m, scan.y_m, self.p.keyframe_spacing_m):
+            self.keyframes.add(scan)
         if self.hal.mesh is not None and self.strategy.shares_dense_map:
-            self.hal.mesh.broadcast(encode_keyframe(self.hal.robot_id, kx, ky, ranges, range_max))
+            self.hal.mesh.broadcast(encode_keyframe(self.hal.robot_id, scan))
         _, _, e = self._vertex_information((x_m, y_m))
         # Passing a place again: this record speaks for the vertex it will join, so it has to
         # outrank what this robot said there before.

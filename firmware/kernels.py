@@ -82,7 +82,7 @@ def polar_fill(logodds, row0, col0, res, px, py, bin0_rad, bin_rad, ranges_m, ra
         r = ranges_m[b]
         if not r > 0.0 or r >= range_max_m:
             continue
-        a = bin0_rad + b * bin_rad
+        a = bin0 + b * bin_rad  # wrapped like the cells above: a scan and its keyframe hit the same cells
         hx = px + (r + half) * math.cos(a)
         hy = py + (r + half) * math.sin(a)
         i = int(math.floor(hy / res)) - row0

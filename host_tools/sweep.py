@@ -18,6 +18,8 @@ import numpy as np
 
 from firmware.comms.frame import frame_size_bytes
 from firmware.comms.schema import record_type
+from firmware.local_map import keyframe_bytes
+from firmware.params import ExplorationParams
 from firmware.team import strategy as strategy_named
 from host_tools.mission import MissionConfig, run_mission
 from host_tools.overrides import Overrides, describe, params_with
@@ -178,11 +180,11 @@ def p_max(trials: Iterable[dict]) -> float:
     return float(statistics.median(max(t["path_length_m"]) for t in trials))
 
 
-def packet_bytes(strategy: str) -> int:
+def packet_bytes(strategy: str, params: ExplorationParams) -> int:
     """Bytes of one map update as the scheme sends it: a 12-byte topological record, or, for
-    the dense baselines, one keyframe scan on the mesh link (13 + 2 * 360 bytes)."""
+    the dense baselines, one keyframe scan on the mesh link."""
     if strategy_named(strategy).shares_dense_map:
-        return 13 + 2 * 360
+        return keyframe_bytes(params.keyframe_bins)
     if strategy_named(strategy).shares_topology:
         return record_type("topo").size_bytes
     return 0
@@ -249,7 +251,7 @@ def tables(spec: SweepSpec, results: list[dict]) -> dict:
         mesh_bps = [b / max(r["t_total_s"], 1e-9) for r in rs for b in r["radio_stats"]["mesh_bytes_sent"]]
         table4.append({
             "strategy": s,
-            "packet_bytes": packet_bytes(s),
+            "packet_bytes": packet_bytes(s, params_with(spec.overrides)),
             "frame_bytes_one_record": frame_size_bytes({"topo": 1}) if strategy_named(s).shares_topology else 0,
             "radio_Bps_per_robot_mean": round(float(np.mean(radio_bps)), 2) if radio_bps else 0.0,
             "radio_Bps_per_robot_peak_10s": round(float(np.max(radio_peak)), 2) if radio_peak else 0.0,

@@ -35,7 +35,7 @@ def polar_fill(logodds, row0, col0, res, px, py, bin0, binw, ranges, range_max, 
     for b, r in enumerate(ranges):
         if not r > 0 or r >= range_max:
             continue
-        a = bin0 + b * binw
+        a = bin0 % (2 * math.pi) + b * binw
         i = int(math.floor((py + (r + res / 2) * math.sin(a)) / res)) - row0
         j = int(math.floor((px + (r + res / 2) * math.cos(a)) / res)) - col0
         if r_lo <= i < r_hi and c_lo <= j < c_hi and 0 <= i < rows and 0 <= j < cols:

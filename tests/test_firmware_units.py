@@ -2,9 +2,10 @@
 import math
 
 import numpy as np
+import pytest
 
 from firmware.controller import PathFollower
-from firmware.local_map import KeyframeStore, LocalMap, bin_scan_by_bearing, something_within
+from firmware.local_map import BinnedScan, KeyframeStore, LocalMap, bin_scan, something_within
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task
 from firmware.topo_map import TopoMap
@@ -33,22 +34,27 @@ def test_tick_period_is_the_fastest_rate():
     assert TaskRates().tick_period_us == 50_000
 
 
-def test_bin_scan_by_bearing_rotates_into_the_world_frame():
+def test_bin_scan_keeps_each_beam_on_its_own_bearing_in_the_world_frame():
     ranges = np.full(360, 5.0)
-    ranges[0] = 1.0  # the beam straight ahead
-    binned = bin_scan_by_bearing(math.pi / 2, -math.pi, 2 * math.pi / 360, ranges, 360)
-    # angle_min = -pi, so beam 0 points backwards: world bearing pi/2 - pi = -pi/2 -> bin 270
-    assert binned[270] == 1.0 and binned[90] == 5.0
+    ranges[0] = 1.0  # beam 0
+    scan = bin_scan(2.0, 3.0, math.pi / 2 + 0.3, -math.pi, 2 * math.pi / 360, ranges, 10.0, 360)
+    # angle_min = -pi, so beam 0 points backwards: world bearing pi/2 + 0.3 - pi, wrapped
+    assert scan.bearing0_rad == pytest.approx(1.5 * math.pi + 0.3)
+    assert scan.ranges_m[0] == 1.0 and np.all(scan.ranges_m[1:] == 5.0)
+    assert (scan.x_m, scan.y_m, scan.range_max_m) == (2.0, 3.0, 10.0)
+    half = bin_scan(0.0, 0.0, 0.0, -math.pi, 2 * math.pi / 360, ranges, 10.0, 180)
+    assert half.ranges_m[0] == 1.0 and np.all(half.ranges_m[1:] == 5.0)   # shortest of beams 0, 1 (and 359)
 
 
 def test_something_within_reach_counts_only_the_half_plane_ahead():
-    binned = np.full(360, 5.0)
-    binned[135] = 0.3                       # world bearing 135 deg, 0.3 m away
-    assert something_within(binned, math.radians(90), 0.35)      # 45 deg off the heading
-    assert not something_within(binned, math.radians(-90), 0.35)  # behind
-    assert not something_within(binned, math.radians(90), 0.25)   # out of reach
-    binned[135] = 0.0                       # no beam in that bin
-    assert not something_within(binned, math.radians(90), 0.35)
+    ranges = np.full(360, 5.0)
+    ranges[135] = 0.3                       # bearing 10 + 135 deg, 0.3 m away
+    scan = BinnedScan(0.0, 0.0, math.radians(10), ranges, 10.0)
+    assert something_within(scan, math.radians(100), 0.35)      # 45 deg off the heading
+    assert not something_within(scan, math.radians(-80), 0.35)  # behind
+    assert not something_within(scan, math.radians(100), 0.25)   # out of reach
+    ranges[135] = 0.0                       # no beam in that bin
+    assert not something_within(scan, math.radians(100), 0.35)
 
 
 def test_following_closely_steers_for_the_next_point_until_the_distance_is_driven():
@@ -81,7 +87,7 @@ def test_local_map_memory_is_fixed_and_keyframes_restore_what_left_the_window():
     size = m.logodds.nbytes
     ranges = np.full(360, 3.0)  # a round room of radius 3 m around (0, 0)
     m.integrate_scan(0.0, 0.0, 0.0, -math.pi, 2 * math.pi / 360, ranges, 10.0)
-    kf.add(0.0, 0.0, bin_scan_by_bearing(0.0, -math.pi, 2 * math.pi / 360, ranges, 360), 10.0)
+    kf.add(bin_scan(0.0, 0.0, 0.0, -math.pi, 2 * math.pi / 360, ranges, 10.0, 360))
     before = kernels.classify(m.logodds, p.logodds_occupied, p.logodds_free)
     i, j = m.cell_of(1.0, 1.0)
     assert before[i, j] == kernels.FREE
