@@ -18,8 +18,7 @@ from firmware.comms.link import LinkLayer, TdmaSchedule
 from firmware.comms.schema import e_inf_bit_to_code
 from firmware.controller import PathFollower
 from firmware.explorer import Explorer
-from firmware.local_map import (BinnedScan, KeyframeStore, LocalMap, bin_scan, decode_keyframe, encode_keyframe,
-                                something_within)
+from firmware.local_map import BinnedScan, LocalMap, bin_scan, decode_keyframe, encode_keyframe, something_within
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task, TaskProfiler
 from firmware.team import STRATEGIES, Strategy, TeamView
@@ -82,8 +81,7 @@ class ExplorerAgent:
             raise ValueError(
                 f"robot radius {limits.robot_radius_m} m exceeds the planner's robot_radius_m "
                 f"{self.p.robot_radius_m} m: paths would scrape walls")
-        self.keyframes = KeyframeStore(self.p.keyframe_bins)
-        self.local_map = LocalMap(self.p, pose.x_m, pose.y_m, self.keyframes)
+        self.local_map = LocalMap(self.p, pose.x_m, pose.y_m)
         self.topo = TopoMap(self.p.d_build_m, self.p.d_connect_m)
         self.explorer = Explorer(self.p, self.local_map, self.topo, self.team)
         self.follower = PathFollower(self.p, limits.max_v_mps, limits.max_omega_radps)
@@ -117,10 +115,8 @@ class ExplorerAgent:
 
     def _on_keyframe(self, message: bytes) -> None:
         kf = decode_keyframe(message)
-        if kf is None or len(kf[1].ranges_m) != self.keyframes.bins:
-            return
-        self.keyframes.add(kf[1])
-        self.local_map.integrate_keyframe(kf[1])
+        if kf is not None:
+            self.local_map.integrate_keyframe(kf[1])
 
     def _task_lidar(self, now_us: int) -> None:
         scan: LidarScan | None = self.hal.lidar.latest_scan()
@@ -233,13 +229,8 @@ class ExplorerAgent:
             return
         if self._last_scan_binned is None or self._last_plan_us < 0:
             return  # the record carries the information here, known only after a first plan
-        scan = self._last_scan_binned
-        # Places the robot passes again keep their first keyframe: keyframes then grow with
-        # the area explored, not with the distance driven, and so does restoring the window.
-        if not self.keyframes.has_within(scan.x_m, scan.y_m, self.p.keyframe_spacing_m):
-            self.keyframes.add(scan)
         if self.hal.mesh is not None and self.strategy.shares_dense_map:
-            self.hal.mesh.broadcast(encode_keyframe(self.hal.robot_id, scan))
+            self.hal.mesh.broadcast(encode_keyframe(self.hal.robot_id, self._last_scan_binned))
         _, _, e = self._vertex_information((x_m, y_m))
         # Passing a place again: this record speaks for the vertex it will join, so it has to
         # outrank what this robot said there before.

@@ -1,9 +1,10 @@
 """The robot's dense local map: a log-odds window of fixed size that follows the robot.
 
-Memory is fixed by the window size, whatever the area explored. What leaves the window is
-forgotten here; `KeyframeStore` keeps one binned scan per topological vertex, so a place
-that comes back into the window is restored from the scans taken there, instead of looking
-unexplored again.
+Planning works on the window only, so its cost is fixed by the window size, whatever the
+area explored. What leaves the window is paged out to `TilePager` and paged back in when
+the robot returns: a place comes back exactly as it was left, instead of looking unexplored
+again. Scans binned for the dense baselines' mesh link (`BinnedScan`, `encode_keyframe`)
+live here too, because folding one in is a window operation.
 """
 from __future__ import annotations
 
@@ -18,6 +19,69 @@ from firmware import kernels
 from firmware.params import ExplorationParams
 
 
+class TilePager:
+    """The log-odds of every place the window has left, in square tiles of TILE_CELLS cells
+    on a fixed grid (global cell coordinates). Memory grows with the area the window has
+    covered, 16 KiB per tile (6.4 m x 6.4 m at 0.1 m), and only tiles holding something are
+    kept. Restoring places from the scans taken there (one per vertex, as before) left out
+    what the scans in between had seen: places restored that way grew frontiers in explored
+    ground, and robots went back to them (a robot alone on maze_a, seed 0, drove 6 km)."""
+
+    TILE_CELLS = 64
+
+    def __init__(self) -> None:
+        self._tiles: dict[tuple[int, int], np.ndarray] = {}
+
+    @property
+    def nbytes(self) -> int:
+        return sum(t.nbytes for t in self._tiles.values())
+
+    def _overlapping(self, r_lo: int, r_hi: int, c_lo: int, c_hi: int):
+        """(tile row, tile col, global row range, global col range) of each tile cut by the
+        global cell rectangle [r_lo, r_hi) x [c_lo, c_hi)."""
+        t = self.TILE_CELLS
+        for ti in range(r_lo // t, (r_hi - 1) // t + 1):
+            for tj in range(c_lo // t, (c_hi - 1) // t + 1):
+                yield ti, tj, (max(r_lo, ti * t), min(r_hi, (ti + 1) * t)), (max(c_lo, tj * t), min(c_hi, (tj + 1) * t))
+
+    def save(self, window: np.ndarray, row0: int, col0: int) -> None:
+        """Page out the whole window (anchored at global cell row0, col0)."""
+        n_r, n_c = window.shape
+        t = self.TILE_CELLS
+        for ti, tj, (g0, g1), (h0, h1) in self._overlapping(row0, row0 + n_r, col0, col0 + n_c):
+            part = window[g0 - row0:g1 - row0, h0 - col0:h1 - col0]
+            tile = self._tiles.get((ti, tj))
+            if tile is None:
+                if not part.any():
+                    continue  # nothing known there: no tile
+                tile = self._tiles[(ti, tj)] = np.zeros((t, t), window.dtype)
+            tile[g0 - ti * t:g1 - ti * t, h0 - tj * t:h1 - tj * t] = part
+
+    def load(self, window: np.ndarray, row0: int, col0: int, region: tuple[int, int, int, int]) -> None:
+        """Page in the window cells [r_lo, r_hi) x [c_lo, c_hi) (window indices); cells of
+        tiles never paged out are left as they are (unknown: 0)."""
+        r_lo, r_hi, c_lo, c_hi = region
+        if r_lo >= r_hi or c_lo >= c_hi:
+            return
+        t = self.TILE_CELLS
+        for ti, tj, (g0, g1), (h0, h1) in self._overlapping(row0 + r_lo, row0 + r_hi, col0 + c_lo, col0 + c_hi):
+            tile = self._tiles.get((ti, tj))
+            if tile is not None:
+                window[g0 - row0:g1 - row0, h0 - col0:h1 - col0] = tile[g0 - ti * t:g1 - ti * t, h0 - tj * t:h1 - tj * t]
+
+    def tiles_within(self, r_lo: int, r_hi: int, c_lo: int, c_hi: int, dtype) -> list[tuple[np.ndarray, int, int]]:
+        """(tile, its global row0, col0) for every tile cut by the global cell rectangle,
+        created if missing, for folding a scan into places outside the window."""
+        t = self.TILE_CELLS
+        out = []
+        for ti, tj, _, _ in self._overlapping(r_lo, r_hi, c_lo, c_hi):
+            tile = self._tiles.get((ti, tj))
+            if tile is None:
+                tile = self._tiles[(ti, tj)] = np.zeros((t, t), dtype)
+            out.append((tile, ti * t, tj * t))
+        return out
+
+
 class BinnedScan(NamedTuple):
     """A 360-degree scan in the world frame: bin b covers the bearings within half a bin of
     bearing0_rad + b * 2 pi / len(ranges_m); a range of 0 means no beam fell in the bin."""
@@ -27,55 +91,6 @@ class BinnedScan(NamedTuple):
     bearing0_rad: float
     ranges_m: np.ndarray
     range_max_m: float
-
-
-class KeyframeStore:
-    """One binned scan per place, kept in the scan's own bearings (see `bin_scan`).
-
-    Ranges are stored in centimetres as uint16: 720 bytes per place at 360 bins."""
-
-    def __init__(self, bins: int) -> None:
-        self.bins = bins
-        self._xy_m = np.zeros((64, 2), np.float64)
-        self._bearing0_rad = np.zeros(64, np.float64)
-        self._ranges_cm = np.zeros((64, bins), np.uint16)
-        self._range_max_m = np.zeros(64, np.float64)
-        self.count = 0
-
-    def add(self, scan: BinnedScan) -> None:
-        if self.count == len(self._xy_m):
-            grow = len(self._xy_m)
-            self._xy_m = np.concatenate([self._xy_m, np.zeros((grow, 2))])
-            self._bearing0_rad = np.concatenate([self._bearing0_rad, np.zeros(grow)])
-            self._ranges_cm = np.concatenate([self._ranges_cm, np.zeros((grow, self.bins), np.uint16)])
-            self._range_max_m = np.concatenate([self._range_max_m, np.zeros(grow)])
-        k = self.count
-        self._xy_m[k] = (scan.x_m, scan.y_m)
-        self._bearing0_rad[k] = scan.bearing0_rad
-        self._ranges_cm[k] = np.clip(np.round(scan.ranges_m * 100.0), 0, 65535).astype(np.uint16)
-        self._range_max_m[k] = scan.range_max_m
-        self.count += 1
-
-    def has_within(self, x_m: float, y_m: float, radius_m: float) -> bool:
-        xy = self._xy_m[: self.count]
-        return bool((((xy[:, 0] - x_m) ** 2 + (xy[:, 1] - y_m) ** 2) < radius_m * radius_m).any())
-
-    def near(self, x_lo: float, x_hi: float, y_lo: float, y_hi: float) -> np.ndarray:
-        """Indices of keyframes whose range disc may touch the rectangle."""
-        xy = self._xy_m[: self.count]
-        reach = self._range_max_m[: self.count]
-        dx = np.maximum(np.maximum(x_lo - xy[:, 0], xy[:, 0] - x_hi), 0.0)
-        dy = np.maximum(np.maximum(y_lo - xy[:, 1], xy[:, 1] - y_hi), 0.0)
-        return np.nonzero(dx * dx + dy * dy <= reach * reach)[0]
-
-    def get(self, k: int) -> BinnedScan:
-        return BinnedScan(
-            float(self._xy_m[k, 0]),
-            float(self._xy_m[k, 1]),
-            float(self._bearing0_rad[k]),
-            self._ranges_cm[k].astype(np.float64) / 100.0,
-            float(self._range_max_m[k]),
-        )
 
 
 def bin_scan(x_m: float, y_m: float, yaw_rad: float, angle_min_rad: float, angle_increment_rad: float,
@@ -166,11 +181,11 @@ def close_wall_gaps(state: np.ndarray) -> np.ndarray:
 
 class LocalMap:
     MAX_BUMP_CELLS = 7 * 64
-    def __init__(self, params: ExplorationParams, x_m: float, y_m: float, keyframes: KeyframeStore) -> None:
+    def __init__(self, params: ExplorationParams, x_m: float, y_m: float) -> None:
         self.p = params
         self.n = params.window_cells
         self.logodds = np.zeros((self.n, self.n), np.float32)
-        self.keyframes = keyframes
+        self.pager = TilePager()
         self.row0, self.col0 = self._anchor_for(x_m, y_m)
         self.bumps: list[tuple[float, float]] = []   # obstacles felt, not seen (mark_obstacle_ahead)
 
@@ -197,8 +212,23 @@ class LocalMap:
 
     # --- updates ------------------------------------------------------------------
     def integrate_keyframe(self, scan: BinnedScan) -> None:
-        """Fold a peer's keyframe (dense-map sharing) into the whole window."""
-        self._fill_binned(scan, (0, self.n, 0, self.n))
+        """Fold a peer's keyframe (dense-map sharing) into the window and into the paged-out
+        places it reaches, once: the window is paged out whole before it moves, so the tile
+        cells it covers now are overwritten then, and those outside it are what comes back."""
+        p = self.p
+        bin_rad = 2 * math.pi / len(scan.ranges_m)
+        ranges = np.ascontiguousarray(scan.ranges_m, np.float64)
+        self._fill(scan.x_m, scan.y_m, scan.bearing0_rad, bin_rad, ranges, scan.range_max_m, (0, self.n, 0, self.n))
+        reach_cells = int(math.ceil(scan.range_max_m / p.resolution_m)) + 2
+        ci, cj = int(math.floor(scan.y_m / p.resolution_m)), int(math.floor(scan.x_m / p.resolution_m))
+        r_lo, r_hi, c_lo, c_hi = ci - reach_cells, ci + reach_cells + 1, cj - reach_cells, cj + reach_cells + 1
+        if self.row0 <= r_lo and r_hi <= self.row0 + self.n and self.col0 <= c_lo and c_hi <= self.col0 + self.n:
+            return  # all inside the window
+        for tile, t_row0, t_col0 in self.pager.tiles_within(r_lo, r_hi, c_lo, c_hi, self.logodds.dtype):
+            t = tile.shape[0]
+            kernels.polar_fill(tile, t_row0, t_col0, p.resolution_m, scan.x_m, scan.y_m, scan.bearing0_rad,
+                               bin_rad, ranges, scan.range_max_m, p.logodds_hit, p.logodds_miss,
+                               p.logodds_min, p.logodds_max, 0, t, 0, t)
 
     def mark_obstacle_ahead(self, x_m: float, y_m: float, yaw_rad: float, distance_m: float) -> None:
         """Remember an obstacle just ahead of the robot (a short arc across its heading) that
@@ -214,23 +244,20 @@ class LocalMap:
                            ranges, range_max, p.logodds_hit, p.logodds_miss, p.logodds_min,
                            p.logodds_max, *region)
 
-    def _fill_binned(self, scan: BinnedScan, region) -> None:
-        self._fill(scan.x_m, scan.y_m, scan.bearing0_rad, 2 * math.pi / len(scan.ranges_m),
-                   np.ascontiguousarray(scan.ranges_m, np.float64), scan.range_max_m, region)
-
     def integrate_scan(self, x_m, y_m, yaw_rad, angle_min_rad, angle_increment_rad, ranges_m, range_max_m) -> None:
         ranges = np.ascontiguousarray(ranges_m, dtype=np.float64)
         self._fill(x_m, y_m, yaw_rad + angle_min_rad, angle_increment_rad, ranges, range_max_m,
                    (0, self.n, 0, self.n))
 
     def follow(self, x_m: float, y_m: float) -> bool:
-        """Re-anchor the window on the robot once it has drifted off centre; restore the
-        newly exposed cells from keyframes. Returns True if the window moved."""
+        """Re-anchor the window on the robot once it has drifted off centre, paging out
+        what it held and paging in the newly exposed cells. Returns True if the window moved."""
         cx, cy = self.center_of(self.n // 2, self.n // 2)
         if max(abs(x_m - cx), abs(y_m - cy)) < self.p.recenter_distance_m:
             return False
         row0, col0 = self._anchor_for(x_m, y_m)
         di, dj = row0 - self.row0, col0 - self.col0
+        self.pager.save(self.logodds, self.row0, self.col0)
         shifted = np.zeros_like(self.logodds)
         n = self.n
         src_i = slice(max(di, 0), min(n + di, n))
@@ -251,16 +278,8 @@ class LocalMap:
         elif dj < 0:
             regions.append((0, n, 0, min(-dj, n)))
         for region in regions:
-            self._restore(region)
+            self.pager.load(self.logodds, self.row0, self.col0, region)
         return True
-
-    def _restore(self, region: tuple[int, int, int, int]) -> None:
-        r_lo, r_hi, c_lo, c_hi = region
-        res = self.p.resolution_m
-        x_lo, y_lo = (self.col0 + c_lo) * res, (self.row0 + r_lo) * res
-        x_hi, y_hi = (self.col0 + c_hi) * res, (self.row0 + r_hi) * res
-        for k in self.keyframes.near(x_lo, x_hi, y_lo, y_hi):
-            self._fill_binned(self.keyframes.get(int(k)), region)
 
     # --- derived layers -------------------------------------------------------------
     def layers(self) -> MapLayers:

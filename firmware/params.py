@@ -76,10 +76,9 @@ class ExplorationParams:
     logodds_max: float = 4.0
     logodds_occupied: float = 0.3
     logodds_free: float = -0.3
-    # Keyframes: every topological vertex keeps its scan binned to this many bearings, so a
-    # place that left the local window is restored when the robot comes back.
+    # Keyframes (the dense baselines' map updates): the scan at each topological vertex,
+    # binned to this many bearings, sent to every teammate on the mesh link.
     keyframe_bins: int = 360
-    keyframe_spacing_m: float = 0.7          # no new keyframe this close to a stored one
 
     @property
     def entropy_per_cell_bit(self) -> float:

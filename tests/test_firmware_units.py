@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from firmware.controller import PathFollower
-from firmware.local_map import BinnedScan, KeyframeStore, LocalMap, bin_scan, something_within
+from firmware.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task
 from firmware.topo_map import TopoMap
@@ -80,14 +80,12 @@ def test_following_closely_steers_for_the_next_point_until_the_distance_is_drive
     assert abs(omega) < 0.5
 
 
-def test_local_map_memory_is_fixed_and_keyframes_restore_what_left_the_window():
+def test_local_map_window_is_fixed_and_places_that_left_it_come_back():
     p = ExplorationParams()
-    kf = KeyframeStore(p.keyframe_bins)
-    m = LocalMap(p, 0.0, 0.0, kf)
+    m = LocalMap(p, 0.0, 0.0)
     size = m.logodds.nbytes
     ranges = np.full(360, 3.0)  # a round room of radius 3 m around (0, 0)
     m.integrate_scan(0.0, 0.0, 0.0, -math.pi, 2 * math.pi / 360, ranges, 10.0)
-    kf.add(bin_scan(0.0, 0.0, 0.0, -math.pi, 2 * math.pi / 360, ranges, 10.0, 360))
     before = kernels.classify(m.logodds, p.logodds_occupied, p.logodds_free)
     i, j = m.cell_of(1.0, 1.0)
     assert before[i, j] == kernels.FREE
@@ -102,3 +100,5 @@ def test_local_map_memory_is_fixed_and_keyframes_restore_what_left_the_window():
     assert after[i, j] == kernels.FREE
     i, j = m.cell_of(3.05, 0.0)
     assert after[i, j] == kernels.OCCUPIED
+    # Only tiles holding something are paged out: the room's, 6.4 m a side at 0.1 m.
+    assert 0 < m.pager.nbytes <= 4 * 64 * 64 * 4
