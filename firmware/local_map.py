@@ -97,11 +97,10 @@ def bin_scan(x_m: float, y_m: float, yaw_rad: float, angle_min_rad: float, angle
              ranges_m: np.ndarray, range_max_m: float, bins: int) -> BinnedScan:
     """A robot-frame scan in `bins` world-frame bins (shortest beam per bin), the first bin
     centred on the first beam. The bins follow the beams rather than fixed world bearings:
-    with as many bins as beams each beam keeps its own bearing, so a place restored from a
-    keyframe is the scan that was taken there. Bins on fixed bearings moved every beam by
+    with as many bins as beams each beam keeps its own bearing, so a teammate folding in the
+    keyframe gets the scan that was taken there. Bins on fixed bearings moved every beam by
     up to half a bin; along a wall seen at a grazing angle that shifts the range enough to
-    clear cells behind the wall, and places restored that way grew frontiers in ground
-    explored long before (a robot alone on maze_a, seed 0, drove 6 km)."""
+    clear cells behind the wall."""
     bearing0 = (yaw_rad + angle_min_rad) % (2 * math.pi)
     offsets = angle_increment_rad * np.arange(len(ranges_m))
     idx = np.floor((offsets % (2 * math.pi)) / (2 * math.pi / bins) + 0.5).astype(np.int64) % bins
