@@ -182,7 +182,7 @@ class Explorer:
             self.waypoints.ban(t.x_m, t.y_m)
             self.seen_on_way += 1
             self.target = None
-        given_up = self._drop_waypoints_seen_by_others() if self.team.strategy.shares_topology else []
+        given_up = self._drop_waypoints_seen_by_others(layers.sight) if self.team.strategy.shares_topology else []
 
         # A target reached is done with: its surroundings are now observed (or unobservable).
         if self.target is not None and math.hypot(self.target.x_m - x_m, self.target.y_m - y_m) < p.waypoint_reached_m:
@@ -201,7 +201,7 @@ class Explorer:
         if self.p.shared_view_m > 0:
             self._remember_given_up(given_up, layers.sight)
         if not candidates and self._given_up and not any(r != self.team.robot_id for r in self.team.positions):
-            revived = self._revive_shared_frontiers()
+            revived = self._revive_shared_frontiers(layers.sight)
             self.waypoints.items.extend(revived)
             self.revived += len(revived)
             candidates = [_Candidate(w.x_m, w.y_m, w.e_bit, False) for w in revived]
@@ -278,22 +278,22 @@ class Explorer:
                 out.extend(_Candidate(float(xy[k, 0]), float(xy[k, 1]), 0.0, True) for k in ks[keep])
         return out
 
-    def _drop_waypoints_seen_by_others(self) -> list[Waypoint]:
+    def _drop_waypoints_seen_by_others(self, sight: np.ndarray) -> list[Waypoint]:
         """Bayer & Faigl: a waypoint is removed when another robot reported its presence
         closer than d_cam. Taken literally that cancels what nobody looked at (robots leaving
         a common staging area cancel each other's waypoints; a robot passing the door of a
         room cancels the room), so a report only raises the question, and what the others
         could have seen answers it:
-        - the report comes from a place this robot has not visited itself and no wall in
-          our map stands between it and the waypoint;
+        - the report comes from a place this robot has not visited itself and, where the
+          local map holds both ends, no wall stands between it and the waypoint;
         - the cells in line of sight within d_cam of every place others reported (as far as
           our map can tell: our known walls block the view, unknown cells do not) are taken
           as seen, and if the waypoint still has presence_keep_bit of information beyond
           them, it stays.
-        - with presence_holds_target (off), waypoints within the cluster radius of the
-          robot's own current target stay. It was built when the cover was cast from the
-          places inside the window only and so changed as the window moved: a robot giving
-          way every time swung between two targets for minutes (maze_b, MinPos, seed 5).
+        - with presence_holds_target, waypoints within the cluster radius of the robot's own
+          current target stay: the cover counted changes as the window moves (it is cast from
+          the places inside it), and a robot giving way every time swung between two targets
+          for minutes (maze_b, MinPos, seed 5: 1014 m).
         Whether the teammate still holds information at its place does not matter: what it
         saw from there is seen, and what it has left is its own waypoint, shared as e_inf.
         (Counting only places with e_inf 0 left robots re-exploring what teammates had seen
@@ -310,7 +310,7 @@ class Explorer:
             near_target = [(w.x_m - t.x_m) ** 2 + (w.y_m - t.y_m) ** 2 < r2 for w in items]
             held = [w for w, near in zip(items, near_target) if near]
             items = [w for w, near in zip(items, near_target) if not near]
-        keep, dropped = self._split_by_team_view(items, self._places_of_others())
+        keep, dropped = self._split_by_team_view(items, sight, self._places_of_others())
         self.waypoints.items = held + keep
         self.dropped_by_presence += len(dropped)
         return dropped
@@ -331,7 +331,7 @@ class Explorer:
                 self._given_up[k].e_bit = float(c) * self.p.entropy_per_cell_bit
             self._given_up = [g for g in self._given_up if g.e_bit >= self.p.min_cluster_entropy_bit]
 
-    def _revive_shared_frontiers(self) -> list[Waypoint]:
+    def _revive_shared_frontiers(self, sight: np.ndarray) -> list[Waypoint]:
         """The presence rule's deadlock breaker, for a robot left with no target at all and
         no teammate still exploring (every one it heard of reported done).
 
@@ -355,9 +355,9 @@ class Explorer:
         others = self._places_of_others(apart_m=self.p.shared_view_m)
         everyone_elses = self.topo.positions()[self._places_of_others()]
         clear2 = self.p.revive_clear_m ** 2
-        worth = [g for g in self._given_up if g.e_bit >= self.p.revive_min_bit
-                 and not (((everyone_elses - (g.x_m, g.y_m)) ** 2).sum(axis=1) < clear2).any()]
-        revived, _ = self._split_by_team_view(worth, others)
+        big = [g for g in self._given_up if g.e_bit >= self.p.revive_min_bit
+               and not (((everyone_elses - (g.x_m, g.y_m)) ** 2).sum(axis=1) < clear2).any()]
+        revived, _ = self._split_by_team_view(big, sight, others)
         return revived
 
     def _places_of_others(self, apart_m: float = 0.0) -> np.ndarray:
@@ -371,19 +371,13 @@ class Explorer:
             others = others[d2 > apart_m ** 2]
         return others
 
-    def _split_by_team_view(self, items: list[Waypoint], others: np.ndarray) -> tuple[list[Waypoint], list[Waypoint]]:
+    def _split_by_team_view(self, items: list[Waypoint], sight: np.ndarray,
+                            others: np.ndarray) -> tuple[list[Waypoint], list[Waypoint]]:
         """(kept, dropped): the presence rule of _drop_waypoints_seen_by_others for the
-        waypoints `items`, with `others` the indices of the teammates' places it counts.
-        The views are cast on the window grown by 2 d_cam (paged in), so every place whose
-        view can reach a waypoint's is counted wherever the window stands: cast from the
-        places inside the window only, a waypoint was dropped or kept as the window moved,
-        and a robot swung between two targets for minutes (maze_b, MinPos, seed 6: 840 m)."""
+        waypoints `items`, with `others` the indices of the teammates' places it counts."""
         if len(others) == 0:
             return list(items), []
         xy = self.topo.positions()
-        m = int(math.ceil((2.0 * self.p.d_cam_m + 1.0) / self.p.resolution_m))
-        size = self.map.n + 2 * m
-        big = None
         reported = []   # (waypoint, i, j): waypoints with a report that may cancel them
         keep = []
         dropped = []
@@ -395,12 +389,10 @@ class Explorer:
                 # Nothing to check against: the report stands.
                 (dropped if len(near) else keep).append(w)
                 continue
-            if len(near) and big is None:
-                big = self.map.sight_around(m)
             for v in near:
                 vi, vj = self.map.cell_of(xy[v, 0], xy[v, 1])
-                if line_of_sight(big, wi + m, wj + m, vi + m, vj + m):
-                    reported.append((w, wi + m, wj + m))
+                if not self._in_window(vi, vj) or line_of_sight(sight, wi, wj, vi, vj):
+                    reported.append((w, wi, wj))
                     break
             else:
                 keep.append(w)
@@ -412,14 +404,12 @@ class Explorer:
             reach2 = (2.0 * self.p.d_cam_m + 1.0) ** 2
             d2 = ((xy[others, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
             places = others[d2 <= reach2]
-            ij, _ = self._cells_of(xy[places])
-            ij = ij + m
-            inside = (ij >= 0).all(axis=1) & (ij < size).all(axis=1)
-            seen = np.zeros(big.shape, bool)
-            kernels.mark_visible(big, ij[inside, 0], ij[inside, 1], self.p.team_view_rays,
+            ij, inside = self._cells_of(xy[places])
+            seen = np.zeros(sight.shape, bool)
+            kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], self.p.team_view_rays,
                                  self.p.d_cam_m / self.p.resolution_m, seen)
-            team_sight = big.copy()
-            team_sight[seen & (big == kernels.UNKNOWN)] = kernels.SEEN_BY_TEAM
+            team_sight = sight.copy()
+            team_sight[seen & (sight == kernels.UNKNOWN)] = kernels.SEEN_BY_TEAM
             wi = np.array([r[1] for r in reported], np.int64)
             wj = np.array([r[2] for r in reported], np.int64)
             unseen_bit = kernels.observable_unknown(team_sight, wi, wj, self.p.info_rays,

@@ -281,30 +281,13 @@ class LocalMap:
         return True
 
     # --- derived layers -------------------------------------------------------------
-    def _state(self, logodds: np.ndarray, margin_cells: int) -> np.ndarray:
-        p = self.p
-        state = kernels.classify(logodds, p.logodds_occupied, p.logodds_free)
-        size = state.shape[0]
-        for bx, by in self.bumps:
-            i, j = self.cell_of(bx, by)
-            i, j = i + margin_cells, j + margin_cells
-            if 0 <= i < size and 0 <= j < size:
-                state[i, j] = kernels.OCCUPIED
-        return state
-
-    def sight_around(self, margin_cells: int) -> np.ndarray:
-        """The sight layer (see MapLayers) of the window grown by margin_cells on every side,
-        the margin paged in from what the robot mapped there before: window cell (i, j) is
-        (i + margin_cells, j + margin_cells) in it."""
-        size = self.n + 2 * margin_cells
-        big = np.zeros((size, size), self.logodds.dtype)
-        self.pager.load(big, self.row0 - margin_cells, self.col0 - margin_cells, (0, size, 0, size))
-        big[margin_cells:margin_cells + self.n, margin_cells:margin_cells + self.n] = self.logodds
-        return close_wall_gaps(self._state(big, margin_cells))
-
     def layers(self) -> MapLayers:
         p = self.p
-        state = self._state(self.logodds, 0)
+        state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
+        for bx, by in self.bumps:
+            i, j = self.cell_of(bx, by)
+            if 0 <= i < self.n and 0 <= j < self.n:
+                state[i, j] = kernels.OCCUPIED
         traversable = np.zeros(state.shape, bool)
         cell_cost = np.ones(state.shape, np.float64)
         # Only known cells can be traversable, and distances matter only up to the clearance

@@ -121,21 +121,3 @@ def test_random_bytes_into_decode_keyframe_never_raise(data):
     out = decode_keyframe(data)
     if out is not None:
         assert len(data) == keyframe_bytes(len(out[1].ranges_m))
-
-
-def test_the_sight_around_the_window_holds_what_was_paged_out():
-    from firmware import kernels
-    m = LocalMap(P, 0.0, 0.0)
-    m.integrate_scan(0.0, 0.0, 0.0, -math.pi, INCREMENT_RAD, np.full(BEAMS, 3.0), 10.0)
-    centre = m.layers().sight
-    _drive(m, [(x, 0.0) for x in np.arange(0.0, 30.0, 1.0)])   # the room leaves the window
-    assert not m.contains(0.0, 0.0)
-    margin = 150
-    big = m.sight_around(margin)
-    assert big.shape == (m.n + 2 * margin,) * 2
-    assert np.array_equal(big[margin:-margin, margin:-margin], m.layers().sight)
-    i, j = m.cell_of(1.0, 0.5)
-    assert big[i + margin, j + margin] == kernels.FREE
-    i, j = m.cell_of(3.05, 0.0)
-    assert big[i + margin, j + margin] == kernels.OCCUPIED
-    assert np.count_nonzero(big == kernels.FREE) == np.count_nonzero(centre == kernels.FREE)
