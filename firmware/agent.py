@@ -53,7 +53,7 @@ class ExplorerAgent:
         self.status = "starting"
         self.ticks = 0
         self.scans = 0
-        self._last_scan_binned: BinnedScan | None = None
+        self._last_scan: tuple[float, float, float, LidarScan] | None = None   # x_m, y_m, yaw_rad, scan
         self._last_vertex_xy: tuple[float, float] | None = None
         self._last_plan_us = -10**12
         self._last_cmd_v = 0.0
@@ -126,10 +126,15 @@ class ExplorerAgent:
         self.local_map.follow(pose.x_m, pose.y_m)
         self.local_map.integrate_scan(pose.x_m, pose.y_m, pose.yaw_rad, scan.angle_min_rad,
                                       scan.angle_increment_rad, scan.ranges_m, scan.range_max_m)
-        self._last_scan_binned = bin_scan(pose.x_m, pose.y_m, pose.yaw_rad, scan.angle_min_rad,
-                                          scan.angle_increment_rad, scan.ranges_m, scan.range_max_m,
-                                          self.p.keyframe_bins)
+        self._last_scan = (pose.x_m, pose.y_m, pose.yaw_rad, scan)
         self.scans += 1
+
+    def _binned_last_scan(self) -> BinnedScan:
+        """The last scan in world-frame bins: binned only when asked (a stall, a dense
+        baseline's keyframe), not at every scan."""
+        x_m, y_m, yaw_rad, scan = self._last_scan
+        return bin_scan(x_m, y_m, yaw_rad, scan.angle_min_rad, scan.angle_increment_rad, scan.ranges_m,
+                        scan.range_max_m, self.p.keyframe_bins)
 
     def _task_control(self, now_us: int) -> None:
         if self.done:
@@ -149,7 +154,7 @@ class ExplorerAgent:
             # bump there, 0.7 m wide, closed the only way out of a room of the Intel lab: one
             # robot, seed 3, ended at 48 % coverage.) Then replan.
             reach_m = self.p.robot_radius_m + self.p.resolution_m
-            touching = something_within(self._last_scan_binned, pose.yaw_rad, reach_m)
+            touching = something_within(self._binned_last_scan(), pose.yaw_rad, reach_m)
             if not touching:
                 self.local_map.mark_obstacle_ahead(pose.x_m, pose.y_m, pose.yaw_rad, reach_m)
             self.bumps += 1
@@ -177,7 +182,7 @@ class ExplorerAgent:
         return False
 
     def _task_planning(self, now_us: int) -> None:
-        if self._last_scan_binned is None or self.done:
+        if self._last_scan is None or self.done:
             return
         pose = self.hal.odometry.read()
         self._last_plan_us = now_us
@@ -227,10 +232,10 @@ class ExplorerAgent:
         last = self._last_vertex_xy
         if last is not None and math.hypot(x_m - last[0], y_m - last[1]) < self.p.d_build_m:
             return
-        if self._last_scan_binned is None or self._last_plan_us < 0:
+        if self._last_scan is None or self._last_plan_us < 0:
             return  # the record carries the information here, known only after a first plan
         if self.hal.mesh is not None and self.strategy.shares_dense_map:
-            self.hal.mesh.broadcast(encode_keyframe(self.hal.robot_id, self._last_scan_binned))
+            self.hal.mesh.broadcast(encode_keyframe(self.hal.robot_id, self._binned_last_scan()))
         _, _, e = self._vertex_information((x_m, y_m))
         # Passing a place again: this record speaks for the vertex it will join, so it has to
         # outrank what this robot said there before.

@@ -214,20 +214,18 @@ class LocalMap:
         """Fold a peer's keyframe (dense-map sharing) into the window and into the paged-out
         places it reaches, once: the window is paged out whole before it moves, so the tile
         cells it covers now are overwritten then, and those outside it are what comes back."""
-        p = self.p
-        bin_rad = 2 * math.pi / len(scan.ranges_m)
-        ranges = np.ascontiguousarray(scan.ranges_m, np.float64)
-        self._fill(scan.x_m, scan.y_m, scan.bearing0_rad, bin_rad, ranges, scan.range_max_m, (0, self.n, 0, self.n))
-        reach_cells = int(math.ceil(scan.range_max_m / p.resolution_m)) + 2
-        ci, cj = int(math.floor(scan.y_m / p.resolution_m)), int(math.floor(scan.x_m / p.resolution_m))
+        res = self.p.resolution_m
+        fold = (scan.x_m, scan.y_m, scan.bearing0_rad, 2 * math.pi / len(scan.ranges_m),
+                np.ascontiguousarray(scan.ranges_m, np.float64), scan.range_max_m)
+        self._fill(*fold, (0, self.n, 0, self.n))
+        reach_cells = int(math.ceil(scan.range_max_m / res)) + 2
+        ci, cj = int(math.floor(scan.y_m / res)), int(math.floor(scan.x_m / res))
         r_lo, r_hi, c_lo, c_hi = ci - reach_cells, ci + reach_cells + 1, cj - reach_cells, cj + reach_cells + 1
         if self.row0 <= r_lo and r_hi <= self.row0 + self.n and self.col0 <= c_lo and c_hi <= self.col0 + self.n:
             return  # all inside the window
         for tile, t_row0, t_col0 in self.pager.tiles_within(r_lo, r_hi, c_lo, c_hi, self.logodds.dtype):
             t = tile.shape[0]
-            kernels.polar_fill(tile, t_row0, t_col0, p.resolution_m, scan.x_m, scan.y_m, scan.bearing0_rad,
-                               bin_rad, ranges, scan.range_max_m, p.logodds_hit, p.logodds_miss,
-                               p.logodds_min, p.logodds_max, 0, t, 0, t)
+            self._fill(*fold, (0, t, 0, t), grid=(tile, t_row0, t_col0))
 
     def mark_obstacle_ahead(self, x_m: float, y_m: float, yaw_rad: float, distance_m: float) -> None:
         """Remember an obstacle just ahead of the robot (a short arc across its heading) that
@@ -237,9 +235,12 @@ class LocalMap:
             self.bumps.append((x_m + distance_m * math.cos(yaw_rad + off), y_m + distance_m * math.sin(yaw_rad + off)))
         del self.bumps[:-self.MAX_BUMP_CELLS]  # bounded memory: the oldest are forgotten first
 
-    def _fill(self, px, py, bin0, binw, ranges, range_max, region) -> None:
+    def _fill(self, px, py, bin0, binw, ranges, range_max, region, grid=None) -> None:
+        """Fold a scan into `region` of the window, or of grid = (log-odds array, its global
+        row0, col0), a paged-out tile."""
         p = self.p
-        kernels.polar_fill(self.logodds, self.row0, self.col0, p.resolution_m, px, py, bin0, binw,
+        logodds, row0, col0 = grid if grid is not None else (self.logodds, self.row0, self.col0)
+        kernels.polar_fill(logodds, row0, col0, p.resolution_m, px, py, bin0, binw,
                            ranges, range_max, p.logodds_hit, p.logodds_miss, p.logodds_min,
                            p.logodds_max, *region)
 
