@@ -44,6 +44,34 @@ def nearest_traversable(traversable: np.ndarray, i: int, j: int, radius_cells: i
     return int(cells[k, 0] + i0), int(cells[k, 1] + j0)
 
 
+def escape_start(traversable: np.ndarray, i: int, j: int, radius_cells: int) -> tuple[int, int] | None:
+    """Where to plan from when the robot's own cell (i, j) is not traversable (pushed near a
+    wall, or the map changed under it): the traversable cell within a square of radius_cells
+    that lies in the largest connected region, the nearest of those (lowest index on ties).
+    The nearest cell alone can lie in a sliver the safety margin cuts off: in a doorway of the
+    Intel lab (one robot, seed 3) every target looked unreachable from such a sliver, all
+    were dropped after their strikes, and the mission ended at 0.93 coverage."""
+    n_r, n_c = traversable.shape
+    i0, i1 = max(i - radius_cells, 0), min(i + radius_cells + 1, n_r)
+    j0, j1 = max(j - radius_cells, 0), min(j + radius_cells + 1, n_c)
+    cells = np.argwhere(traversable[i0:i1, j0:j1]) + np.array([i0, j0])
+    if len(cells) == 0:
+        return None
+    d2 = (cells[:, 0] - i) ** 2 + (cells[:, 1] - j) ** 2
+    order = np.lexsort((cells[:, 1], cells[:, 0], d2))     # nearest first
+    counted = np.zeros(len(cells), bool)
+    best, best_cells = None, -1
+    for k in order:
+        if counted[k]:
+            continue
+        region = kernels.reachable_cells(traversable, int(cells[k, 0]), int(cells[k, 1]))
+        counted |= region[cells[:, 0], cells[:, 1]]
+        size = int(region.sum())
+        if size > best_cells:
+            best, best_cells = (int(cells[k, 0]), int(cells[k, 1])), size
+    return best
+
+
 class GridPaths:
     """Shortest paths in the local map from the robot's cell, settled only as far as asked:
     a plan needs the costs of its candidate cells and the route to one of them, seldom the
@@ -158,7 +186,8 @@ class Explorer:
         res = p.resolution_m
         layers = self.map.layers()
         ri, rj = self.map.cell_of(x_m, y_m)
-        start = nearest_traversable(layers.traversable, ri, rj, int(math.ceil(p.escape_radius_m / res)))
+        start = (ri, rj) if layers.traversable[ri, rj] else \
+            escape_start(layers.traversable, ri, rj, int(math.ceil(p.escape_radius_m / res)))
         if start is None:
             # Boxed in by the safety margin (pushed near a wall, or the map changed under it):
             # plan from the nearest known-free cell instead, so the robot can back out.

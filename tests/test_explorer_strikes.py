@@ -1,7 +1,12 @@
 """What the planner does when it finds no route: strikes against a target count once per
 planning period however often it replans. Hand-built local map: the presence tests' closed
-corridor, with a wall across it."""
-from firmware.explorer import Explorer
+corridor, with a wall across it; and where a robot off the traversable cells plans from."""
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import ndimage
+
+from firmware.explorer import Explorer, escape_start, nearest_traversable
 from firmware.params import ExplorationParams
 from firmware.waypoints import Waypoint
 from tests.test_explorer_presence import _explorer as corridor
@@ -43,3 +48,39 @@ def test_fast_replans_strike_an_unreachable_target_once_per_planning_period():
     plan = ex.plan(*ROBOT_XY, 2 * SECOND_US)
     assert not _in_w(ex) and ex.dropped_unreachable == 1
     assert plan.done, "a target unreachable for three planning periods is dropped for good"
+
+
+# --- where a robot off the traversable cells plans from -------------------------------------
+
+def test_a_robot_off_the_traversable_cells_plans_from_the_large_region_not_the_nearest_sliver():
+    # The doorway of the Intel lab's one-robot mission (seed 3): the robot's cell is not
+    # traversable, the nearest traversable cell is a sliver the safety margin cut off, and
+    # the room it came from lies three cells farther.
+    t = np.zeros((40, 40), bool)
+    t[20, 21] = True                       # a one-cell sliver next to the robot
+    t[10:30, 24:36] = True                 # the room
+    assert nearest_traversable(t, 20, 20, 8) == (20, 21)
+    assert escape_start(t, 20, 20, 8) == (20, 24)
+    assert escape_start(t, 20, 20, 2) == (20, 21), "the room is out of reach: the sliver is all there is"
+    assert escape_start(np.zeros((40, 40), bool), 20, 20, 8) is None
+
+
+def _reference_escape_start(t: np.ndarray, i: int, j: int, r: int):
+    """Plainly: label the 4-connected regions, take the cells of the square nearest first
+    (lowest index on ties), return the first one whose region is as large as any there."""
+    labels, _ = ndimage.label(t)
+    sizes = np.bincount(labels.ravel())
+    cells = [(a, b) for a in range(max(i - r, 0), min(i + r + 1, t.shape[0]))
+             for b in range(max(j - r, 0), min(j + r + 1, t.shape[1])) if t[a, b]]
+    if not cells:
+        return None
+    cells.sort(key=lambda c: ((c[0] - i) ** 2 + (c[1] - j) ** 2, c[0], c[1]))
+    biggest = max(sizes[labels[c]] for c in cells)
+    return next(c for c in cells if sizes[labels[c]] == biggest)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2 ** 32 - 1), st.floats(0.2, 0.7), st.integers(0, 23), st.integers(0, 23), st.integers(1, 6))
+def test_escape_start_equals_a_plain_reference_on_generated_grids(seed, density, i, j, r):
+    t = np.random.default_rng(seed).random((24, 24)) < density
+    assert escape_start(t, i, j, r) == _reference_escape_start(t, i, j, r)
