@@ -282,11 +282,14 @@ def tables(spec: SweepSpec, results: list[dict]) -> dict:
                     for k, v in r["radio_stats"]["receptions"].items():
                         fates[k] = fates.get(k, 0) + v
                 heard = sum(v for k, v in fates.items() if k != "frames")
+                lo, hi = ratio_interval((max(t["path_length_m"]) for t in trials),
+                                        (max(t["path_length_m"]) for t in base)) if base else (None, None)
                 radio_cost.append({
                     "radio": radio, "map": trials[0]["map"], "strategy": s,
                     "p_max_m": round(p_max(trials), 1),
                     "p_max_reference_m": round(p_max(base), 1) if base else None,
                     "ratio": round(p_max(trials) / p_max(base), 3) if base else None,
+                    "ratio_interval_90": [round(lo, 3), round(hi, 3)] if base else None,
                     "coverage_min": coverage_floor(min(t["coverage"] for t in trials)),
                     "complete": sum(t["termination"] == "complete" for t in trials), "trials": len(trials),
                     "duty_cycle_violations": sum(r["radio_stats"]["duty_cycle_violations"] for r in trials),
@@ -328,10 +331,12 @@ def markdown(t: dict) -> str:
                   "on which side the ratio lies."]
     if t["radio_cost"]:
         lines += ["", f"Cost of a real band against {spec['radio']} (same maps and seeds):", "",
-                  "| radio | map | strategy | p_max [m] | vs reference | lowest coverage, complete | "
+                  "| radio | map | strategy | p_max [m] | vs reference (90 % interval) | lowest coverage, complete | "
                   "receptions lost | worst hour duty cycle | violations |", "|---|---|---|---:|---:|---|---:|---:|---:|"]
         for c in t["radio_cost"]:
-            ref = "n/a" if c["ratio"] is None else f"{c['p_max_reference_m']:.1f} -> x{c['ratio']:.2f}"
+            ref = "n/a" if c["ratio"] is None else (f"{c['p_max_reference_m']:.1f} -> x{c['ratio']:.2f} "
+                                                    f"({c['ratio_interval_90'][0]:.2f} to "
+                                                    f"{c['ratio_interval_90'][1]:.2f})")
             lost = "n/a" if c["receptions_lost_fraction"] is None else f"{100 * c['receptions_lost_fraction']:.1f} %"
             lines.append(f"| {c['radio']} | {c['map']} | {c['strategy']} | {c['p_max_m']:.1f} | {ref} | "
                          f"{c['coverage_min']:.4f}, {c['complete']}/{c['trials']} | {lost} | "

@@ -49,6 +49,8 @@ def test_local_sweep_writes_tables_and_figures(tmp_path):
     g3 = sorted(max(r["path_length_m"]) for r in results if r["radio"] == "eu868-g3")
     assert cost["p_max_m"] == round((g3[0] + g3[1]) / 2, 1) and cost["duty_cycle_violations"] == 0
     assert cost["p_max_reference_m"] == row["minpos"]["p_max_m"] and 0 <= cost["receptions_lost_fraction"] < 1
+    lo, hi = cost["ratio_interval_90"]
+    assert lo <= cost["ratio"] <= hi
     comm = {r["strategy"]: r for r in t["table4_communication"]}
     assert comm["minpos"]["packet_bytes"] == 12 and comm["minpos"]["radio_Bps_per_robot_mean"] > 0
     assert comm["independent"]["radio_Bps_per_robot_mean"] == 0
