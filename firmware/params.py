@@ -23,10 +23,7 @@ class ExplorationParams:
     # Waypoints (Table II + eq. 3): information within d_cam, clusters, minimum entropy.
     d_cam_m: float = 9.5
     waypoint_cluster_radius_m: float = 3.0
-    # Table II says 90 bit (35 cells of 0.1 m). On the Intel lab's SLAM map that left pockets
-    # behind furniture and in doorways, each under 0.8 m2 and together over 1 % of the
-    # reachable area, to nobody (README, "Team results"); 20 bit (8 cells) sends a robot there.
-    min_cluster_entropy_bit: float = 20.0
+    min_cluster_entropy_bit: float = 90.0
     artifact_types: int = 5                  # "five artifacts of different type"
     candidate_spacing_m: float = 1.0         # waypoint candidates are evaluated on this sub-grid
     info_rays: int = 64                      # rays cast from a candidate to count observable cells

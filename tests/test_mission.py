@@ -43,7 +43,7 @@ def test_trajectory_digest_for_a_fixed_seed_is_pinned():
     assert r.trajectory_sha256 == PINNED_TRAJECTORY_SHA256
 
 
-PINNED_TRAJECTORY_SHA256 = "ea15b4edfd21c9187a3a1764ca53c5b20d1831d60d5e80f5dbd5b8c259abb650"
+PINNED_TRAJECTORY_SHA256 = "006cdc9437a762d0760a5b19cf2e7dfe9685199461dcae95a1c14cb253873536"
 
 
 def test_serial_radio_gives_the_same_mission_as_the_in_process_radio(shared_maps):
