@@ -23,7 +23,7 @@ class ExplorationParams:
     # Waypoints (Table II + eq. 3): information within d_cam, clusters, minimum entropy.
     d_cam_m: float = 9.5
     waypoint_cluster_radius_m: float = 3.0
-    min_cluster_entropy_bit: float = 90.0
+    min_cluster_entropy_bit: float = 90.0    # 20 bit was tried and not kept (README, "Notes and limits")
     artifact_types: int = 5                  # "five artifacts of different type"
     candidate_spacing_m: float = 1.0         # waypoint candidates are evaluated on this sub-grid
     info_rays: int = 64                      # rays cast from a candidate to count observable cells
