@@ -53,7 +53,7 @@ def test_fast_replans_strike_an_unreachable_target_once_per_planning_period():
 # --- where a robot off the traversable cells plans from -------------------------------------
 
 def test_a_robot_off_the_traversable_cells_plans_from_the_large_region_not_the_nearest_sliver():
-    # The doorway of the Intel lab's one-robot mission (seed 3): the robot's cell is not
+    # The doorway of the Intel lab's one-robot mission (seed 3, 20 bit waypoints): the robot's cell is not
     # traversable, the nearest traversable cell is a sliver the safety margin cut off, and
     # the room it came from lies three cells farther.
     t = np.zeros((40, 40), bool)
