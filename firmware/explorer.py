@@ -31,17 +31,21 @@ class Plan:
     done: bool                     # nothing left to explore that this robot can reach
 
 
-def nearest_traversable(traversable: np.ndarray, i: int, j: int, radius_cells: int) -> tuple[int, int] | None:
-    """The traversable cell closest to (i, j) within a square of radius_cells (lowest index on ties)."""
+def traversable_near(traversable: np.ndarray, i: int, j: int, radius_cells: int) -> np.ndarray:
+    """The traversable cells (rows of i, j) within a square of radius_cells around (i, j),
+    nearest first, lowest index on ties."""
     n_r, n_c = traversable.shape
     i0, i1 = max(i - radius_cells, 0), min(i + radius_cells + 1, n_r)
     j0, j1 = max(j - radius_cells, 0), min(j + radius_cells + 1, n_c)
-    cells = np.argwhere(traversable[i0:i1, j0:j1])
-    if len(cells) == 0:
-        return None
-    d2 = (cells[:, 0] + i0 - i) ** 2 + (cells[:, 1] + j0 - j) ** 2
-    k = int(np.argmin(d2))
-    return int(cells[k, 0] + i0), int(cells[k, 1] + j0)
+    cells = np.argwhere(traversable[i0:i1, j0:j1]) + np.array([i0, j0])
+    d2 = (cells[:, 0] - i) ** 2 + (cells[:, 1] - j) ** 2
+    return cells[np.lexsort((cells[:, 1], cells[:, 0], d2))]
+
+
+def nearest_traversable(traversable: np.ndarray, i: int, j: int, radius_cells: int) -> tuple[int, int] | None:
+    """The traversable cell closest to (i, j) within a square of radius_cells (lowest index on ties)."""
+    cells = traversable_near(traversable, i, j, radius_cells)
+    return (int(cells[0, 0]), int(cells[0, 1])) if len(cells) else None
 
 
 def escape_start(traversable: np.ndarray, i: int, j: int, radius_cells: int) -> tuple[int, int] | None:
@@ -52,17 +56,10 @@ def escape_start(traversable: np.ndarray, i: int, j: int, radius_cells: int) -> 
     Intel lab (one robot, seed 3, with waypoints down to 20 bit) every target looked
     unreachable from such a sliver, all were dropped after their strikes, and the mission
     ended at 0.93 coverage."""
-    n_r, n_c = traversable.shape
-    i0, i1 = max(i - radius_cells, 0), min(i + radius_cells + 1, n_r)
-    j0, j1 = max(j - radius_cells, 0), min(j + radius_cells + 1, n_c)
-    cells = np.argwhere(traversable[i0:i1, j0:j1]) + np.array([i0, j0])
-    if len(cells) == 0:
-        return None
-    d2 = (cells[:, 0] - i) ** 2 + (cells[:, 1] - j) ** 2
-    order = np.lexsort((cells[:, 1], cells[:, 0], d2))     # nearest first
+    cells = traversable_near(traversable, i, j, radius_cells)
     counted = np.zeros(len(cells), bool)
     best, best_cells = None, -1
-    for k in order:
+    for k in range(len(cells)):
         if counted[k]:
             continue
         region = kernels.reachable_cells(traversable, int(cells[k, 0]), int(cells[k, 1]))
