@@ -5,7 +5,7 @@ import json
 import pytest
 
 from host_tools.sweep import (SweepSpec, code_fingerprint, coverage_floor, markdown, p_max, ratio_interval, run_local,
-                               save)
+                               save, shortfalls)
 
 SPEC = SweepSpec(maps=("cave:4:40x40",), strategies=("minpos", "independent"), robots=2, seeds=2,
                  radio="ideal-100Bps", max_sim_s=40.0, also_radios=("eu868-g3",))
@@ -58,6 +58,9 @@ def test_local_sweep_writes_tables_and_figures(tmp_path):
     assert json.loads((tmp_path / "tables.json").read_text())["spec"]["seeds"] == 2
     assert len((tmp_path / "trials.csv").read_text().splitlines()) == 7
     assert "eu868-g3 | cave:4:40x40 | minpos |" in markdown(t)
+    sf = t["shortfalls"]
+    assert sf["trials"] == 6 and sf["short"] == shortfalls(results)
+    assert f"stopping by itself: {len(sf['short'])} of 6" in markdown(t)
     for s in SPEC.strategies:
         assert (tmp_path / f"paths_cave_4_40x40_{s}.png").read_bytes()[:4] == b"\x89PNG"
     # Worker processes give the missions the same results as running them here.
@@ -117,6 +120,21 @@ def test_an_interrupted_sweep_resumes_where_it_stopped(tmp_path, capsys):
 def test_lowest_coverage_is_rounded_down_so_a_bound_is_never_shown_met_when_missed():
     assert coverage_floor(0.989962) == 0.9899
     assert coverage_floor(0.99) == 0.99 and coverage_floor(0.57) == 0.57 and coverage_floor(1.0) == 1.0
+
+
+def test_every_trial_short_of_the_coverage_target_or_not_ending_by_itself_is_listed():
+    def trial(seed, coverage, termination="complete", radio="ideal-100Bps", strategy="minpos"):
+        return {"map": "intel.yaml", "map_spec": "intel", "strategy": strategy, "radio": radio, "seed": seed,
+                "coverage": coverage, "termination": termination, "path_length_m": [10.0, 250.04]}
+    trials = [trial(0, 0.99), trial(1, 0.98999), trial(2, 1.0, "time_limit"), trial(3, 0.995),
+              trial(0, 0.9891, radio="eu868-g3"), trial(4, 0.98, strategy="greedy")]
+    short = shortfalls(trials)
+    assert [(x["radio"], x["strategy"], x["seed"]) for x in short] == [
+        ("eu868-g3", "minpos", 0), ("ideal-100Bps", "greedy", 4), ("ideal-100Bps", "minpos", 1),
+        ("ideal-100Bps", "minpos", 2)]
+    assert short[2]["coverage"] == 0.9899 and short[3]["termination"] == "time_limit"
+    assert short[0]["longest_path_m"] == 250.0
+    assert shortfalls([trial(0, 0.99), trial(1, 1.0)]) == []
 
 
 def test_code_fingerprint_ignores_docstrings_comments_and_layout_only(tmp_path):
