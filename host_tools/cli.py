@@ -12,6 +12,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "modem": ("host_tools.cmd_modem", "serve virtual RN2483 modems on pseudo-terminals"),
     "inspect": ("host_tools.cmd_inspect", "decode radio frames from a serial port or a capture"),
     "sweep": ("host_tools.cmd_sweep", "run maps x strategies x seeds and tabulate p_max and bandwidth"),
+    "map": ("host_tools.cmd_map", "the area a map asks a team to cover, and how much of it a planner can see at all"),
 }
 
 

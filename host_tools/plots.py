@@ -76,3 +76,17 @@ def plot_sweep_paths(map_spec: str, trial: dict, path: Path) -> None:
     ax.legend(loc="upper right", fontsize=7)
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def plot_unobservable(occ, drivable: np.ndarray, unseen: np.ndarray, title: str, path: Path) -> None:
+    """Where a planner with some clearance can stand (tinted) and the reachable cells its
+    LiDAR sees from none of those places (red): `lorascout map`."""
+    fig, ax = plt.subplots(figsize=(8, 8), constrained_layout=True)
+    _background(ax, occ, drivable)
+    red = np.zeros(unseen.shape + (4,))
+    red[unseen] = (0.85, 0.0, 0.0, 1.0)
+    extent = (occ.origin_x_m, occ.origin_x_m + occ.width_m, occ.origin_y_m, occ.origin_y_m + occ.height_m)
+    ax.imshow(red, origin="lower", extent=extent, interpolation="nearest")
+    ax.set_title(title, fontsize=10)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
