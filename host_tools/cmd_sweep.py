@@ -110,7 +110,7 @@ def main(args: argparse.Namespace) -> int:
     bar.close()
     t = save(args.out, spec, earlier + results)
     print(markdown(t))
-    print(f"wrote {args.out}/tables.md, tables.json, trials.csv, trials.jsonl and paths_*.png")
+    print(f"wrote {args.out}/tables.md, tables.json, trials.csv, trials.jsonl, paths_*.png, paths_overview.png and p_max_by_trial.png")
     return 0
 
 
@@ -135,6 +135,6 @@ def _tabulate_earlier(out: Path, spec: SweepSpec, wanted: set[tuple], fingerprin
         return 2
     t = save(out, spec, list(found.values()))
     print(markdown(t))
-    print(f"wrote {out}/tables.md, tables.json, trials.csv, trials.jsonl and paths_*.png "
+    print(f"wrote {out}/tables.md, tables.json, trials.csv, trials.jsonl, paths_*.png, paths_overview.png and p_max_by_trial.png "
           f"from {len(found)} trials of code {fingerprint}")
     return 0

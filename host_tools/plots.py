@@ -58,22 +58,73 @@ def plot_mission(result, path: Path) -> None:
     plt.close(fig)
 
 
+def _draw_paths(ax, occ, trial: dict, legend: bool) -> None:
+    _background(ax, occ)
+    for i, xy in enumerate(trial["paths_xy"]):
+        xy = np.asarray(xy).reshape(-1, 2)
+        c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
+        ax.plot(xy[:, 0], xy[:, 1], color=c, lw=1.0 if legend else 0.6,
+                label=f"robot {i}: {trial['path_length_m'][i]:.0f} m")
+        if len(xy):
+            ax.plot(xy[0, 0], xy[0, 1], "o", color=c, ms=4 if legend else 2)
+    if legend:
+        ax.legend(loc="upper right", fontsize=7)
+
+
 def plot_sweep_paths(map_spec: str, trial: dict, path: Path) -> None:
     """Every robot's path in one trial of a sweep (Bayer & Faigl Figs. 8 and 9)."""
     from world_sim.map_spec import resolve_map
 
     occ, _, label = resolve_map(map_spec)
     fig, ax = plt.subplots(figsize=(7, 7), constrained_layout=True)
-    _background(ax, occ)
-    for i, xy in enumerate(trial["paths_xy"]):
-        xy = np.asarray(xy).reshape(-1, 2)
-        c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
-        ax.plot(xy[:, 0], xy[:, 1], color=c, lw=1.0, label=f"robot {i}: {trial['path_length_m'][i]:.0f} m")
-        if len(xy):
-            ax.plot(xy[0, 0], xy[0, 1], "o", color=c, ms=4)
+    _draw_paths(ax, occ, trial, legend=True)
     ax.set_title(f"{label}, {trial['strategy']}, seed {trial['seed']}: longest path "
                  f"{max(trial['path_length_m']):.0f} m, coverage {trial['coverage'] * 100:.1f} %", fontsize=9)
-    ax.legend(loc="upper right", fontsize=7)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def plot_sweep_overview(maps: list[str], strategies: list[str], first: dict, path: Path) -> None:
+    """One panel per map (rows) and strategy (columns) with every robot's path in the trial
+    `first[(map_spec, strategy)]`, so the strategies can be compared at a glance."""
+    from world_sim.map_spec import resolve_map
+
+    fig, axes = plt.subplots(len(maps), len(strategies), figsize=(3.2 * len(strategies), 3.2 * len(maps)),
+                             constrained_layout=True, squeeze=False)
+    for r, m in enumerate(maps):
+        occ, _, label = resolve_map(m)
+        for c, s in enumerate(strategies):
+            ax = axes[r][c]
+            trial = first[(m, s)]
+            _draw_paths(ax, occ, trial, legend=False)
+            ax.set_title(f"{label}, {s}, seed {trial['seed']}\nlongest {max(trial['path_length_m']):.0f} m, "
+                         f"coverage {trial['coverage'] * 100:.1f} %", fontsize=8)
+            ax.set_xlabel("")
+            ax.set_ylabel("")
+            ax.tick_params(labelsize=6)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def plot_sweep_p_max(maps: list[str], strategies: list[str], longest: dict, radio: str, path: Path) -> None:
+    """The longest robot path of every trial, one dot per seed, per map and strategy, with the
+    median (p_max) as a bar: how far apart single trials lie next to the medians compared."""
+    fig, axes = plt.subplots(1, len(maps), figsize=(3.6 * len(maps), 3.6), constrained_layout=True, squeeze=False)
+    for ax, m in zip(axes[0], maps):
+        for k, s in enumerate(strategies):
+            values = np.asarray(longest.get((m, s), []), dtype=float)
+            if not len(values):
+                continue
+            ax.plot(np.full(len(values), k) + np.linspace(-0.15, 0.15, len(values)), values, "o",
+                    color=ROBOT_COLOURS[k % len(ROBOT_COLOURS)], ms=3, alpha=0.8)
+            ax.plot([k - 0.3, k + 0.3], [np.median(values)] * 2, color="black", lw=1.5)
+        ax.set_xticks(range(len(strategies)))
+        ax.set_xticklabels(strategies, rotation=30, ha="right", fontsize=8)
+        ax.set_title(Path(m).name if m.endswith(".yaml") else m, fontsize=9)
+        ax.set_ylabel("longest robot path [m]")
+        ax.set_ylim(bottom=0)
+        ax.grid(axis="y", alpha=0.3)
+    fig.suptitle(f"every trial's longest path (dots) and the median, p_max (bars); radio {radio}", fontsize=9)
     fig.savefig(path, dpi=100)
     plt.close(fig)
 

@@ -387,11 +387,15 @@ def save(out: Path, spec: SweepSpec, results: list[dict]) -> dict:
     with open(out / "trials.jsonl", "w") as f:
         for r in sorted(results, key=lambda r: (r["radio"], r["map_spec"], r["strategy"], r["seed"])):
             f.write(json.dumps({k: v for k, v in r.items() if k != "paths_xy"}, sort_keys=True) + "\n")
-    from host_tools.plots import plot_sweep_paths
+    from host_tools.plots import plot_sweep_overview, plot_sweep_p_max, plot_sweep_paths
 
+    first, longest = {}, {}
     for m in spec.maps:
         for s in spec.strategies:
-            first = min((r for r in results if r["map_spec"] == m and r["strategy"] == s and r["radio"] == spec.radio),
-                        key=lambda r: r["seed"])
-            plot_sweep_paths(m, first, out / f"paths_{Path(first['map']).stem.replace(':', '_')}_{s}.png")
+            trials = [r for r in results if r["map_spec"] == m and r["strategy"] == s and r["radio"] == spec.radio]
+            first[(m, s)] = min(trials, key=lambda r: r["seed"])
+            longest[(m, s)] = [max(r["path_length_m"]) for r in trials]
+            plot_sweep_paths(m, first[(m, s)], out / f"paths_{Path(first[(m, s)]['map']).stem.replace(':', '_')}_{s}.png")
+    plot_sweep_overview(list(spec.maps), list(spec.strategies), first, out / "paths_overview.png")
+    plot_sweep_p_max(list(spec.maps), list(spec.strategies), longest, spec.radio, out / "p_max_by_trial.png")
     return t

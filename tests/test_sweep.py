@@ -61,8 +61,8 @@ def test_local_sweep_writes_tables_and_figures(tmp_path):
     sf = t["shortfalls"]
     assert sf["trials"] == 6 and sf["short"] == shortfalls(results)
     assert f"stopping by itself: {len(sf['short'])} of 6" in markdown(t)
-    for s in SPEC.strategies:
-        assert (tmp_path / f"paths_cave_4_40x40_{s}.png").read_bytes()[:4] == b"\x89PNG"
+    for name in [f"paths_cave_4_40x40_{s}.png" for s in SPEC.strategies] + ["paths_overview.png", "p_max_by_trial.png"]:
+        assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
     # Worker processes give the missions the same results as running them here.
     again = run_local(SPEC.trials()[:1], jobs=1, on_done=lambda r: None)[0]
     first = next(r for r in results if r["seed"] == 0 and r["strategy"] == "minpos")
