@@ -12,8 +12,8 @@ from firmware.team import STRATEGIES
 from hal.lora import PROFILES
 from host_tools.overrides import parse_overrides
 from host_tools.progress import progress_bar
-from host_tools.sweep import (PARTIAL_NAME, SweepSpec, code_fingerprint, load_partial, markdown, run_local, run_ray,
-                               save, trial_key)
+from host_tools.sweep import (PARTIAL_NAME, WRITTEN, SweepSpec, code_fingerprint, load_partial, markdown, run_local,
+                               run_ray, save, trial_key)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -110,7 +110,7 @@ def main(args: argparse.Namespace) -> int:
     bar.close()
     t = save(args.out, spec, earlier + results)
     print(markdown(t))
-    print(f"wrote {args.out}/tables.md, tables.json, trials.csv, trials.jsonl, paths_*.png, paths_overview.png and p_max_by_trial.png")
+    print(f"wrote {args.out}/{WRITTEN}")
     return 0
 
 
@@ -135,6 +135,5 @@ def _tabulate_earlier(out: Path, spec: SweepSpec, wanted: set[tuple], fingerprin
         return 2
     t = save(out, spec, list(found.values()))
     print(markdown(t))
-    print(f"wrote {out}/tables.md, tables.json, trials.csv, trials.jsonl, paths_*.png, paths_overview.png and p_max_by_trial.png "
-          f"from {len(found)} trials of code {fingerprint}")
+    print(f"wrote {out}/{WRITTEN} from {len(found)} trials of code {fingerprint}")
     return 0

@@ -24,6 +24,8 @@ from firmware.team import strategy as strategy_named
 from host_tools.mission import MissionConfig, run_mission
 from host_tools.overrides import Overrides, describe, params_with
 
+# What save() writes into a sweep's folder, for the commands that report it.
+WRITTEN = "tables.md, tables.json, trials.csv, trials.jsonl, paths_*.png, paths_overview.png and p_max_by_trial.png"
 PATH_DECIMATION = 10   # keep every 10th tick of a path for the figures (0.5 s at 20 Hz)
 
 
