@@ -112,3 +112,20 @@ def test_tshark_shows_the_records_of_a_three_robot_capture(tmp_path, shared_maps
     for needle in ("lorascout frame", "Sender id: 0", "Sender id: 2", "x_cm (cm):", "presence (bool):",
                    "e_inf_code (16*log2(1+bit), saturating):"):
         assert needle in shown.stdout, needle
+
+
+def test_the_summary_names_the_longest_path_and_what_became_of_the_frames():
+    from host_tools.cmd_run import format_summary
+
+    report = {"map": "m", "reachable_area_m2": 100.0, "robots": 2, "seed": 0, "strategy": "minpos",
+              "radio": "eu868-g3", "coverage": 0.5, "path_length_m": [12.0, 34.25], "t_total_s": 60.0,
+              "t_90_s": None, "termination": "time_limit", "robot_status": ["exploring", "exploring"],
+              "overlap": 0.1, "robots_in_wall": 0, "sim_speedup": 10.0, "ticks_per_s": 200.0, "wall_s": 6.0,
+              "radio_stats": {"bytes_per_s_mean": [10.0, 11.0], "airtime_fraction": [0.01, 0.02],
+                              "duty_cycle_violations": 0,
+                              "receptions": {"collided": 2, "out_of_range": 0, "received": 10}}}
+    text = format_summary(report)
+    assert "(longest 34.2 m: this trial's p_max)" in text
+    assert "receptions     received 10, collided 2 (16.7 %)\n" in text
+    report["radio_stats"]["receptions"] = {}
+    assert "receptions     none (no frame was sent)" in format_summary(report)
