@@ -53,6 +53,15 @@ def drivable_centres(occ: OccupancyMap, start_xy: tuple[float, float], clearance
     return labels == labels[rows[nearest], cols[nearest]]
 
 
+def coverage_within_clearance(occ: OccupancyMap, observed: np.ndarray, start_xy: tuple[float, float],
+                              clearance_m: float) -> tuple[float, float]:
+    """(area in m², share of it observed) of the area a body as wide as the planner's
+    clearance can sweep from the start: coverage scored against what the planner lets a
+    robot reach, where the mission's coverage is scored against what its body can reach."""
+    reach = reachable_free(occ, start_xy, connectivity=4, robot_radius_m=clearance_m)
+    return float(reach.sum() * occ.resolution_m ** 2), float((observed & reach).sum() / reach.sum())
+
+
 def observable_share(occ: OccupancyMap, start_xy: tuple[float, float], clearance_m: float, *,
                      body_radius_m: float, lidar_beams: int, lidar_range_m: float, stride_m: float,
                      on_station: Callable[[int], None] = lambda n: None) -> tuple[ObservableShare, np.ndarray]:
