@@ -86,19 +86,21 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _within_clearance(result) -> dict:
+def _within_clearance(result) -> dict | None:
     """Coverage of the area a robot keeping the planner's clearance (robot radius plus safety
     margin) can reach from robot 0's start, next to the body-reachable area the mission
     scores: rooms behind doors narrower than twice the clearance count only in the latter.
     Robot 0's first recorded position stands for its start (one 50 ms tick later, in the same
-    staging area)."""
-    from host_tools.cmd_map import DEFAULT_CLEARANCE_M
-    from host_tools.map_report import coverage_within_clearance
+    staging area). None when that start is too close to a wall for the clearance."""
+    from host_tools.map_report import PLANNER_CLEARANCE_M, coverage_within_clearance
 
     x, y = (float(v) for v in result.trajectories[0][0][:2])
-    area_m2, coverage = coverage_within_clearance(result.world.occ, result.world.observed_union(), (x, y),
-                                                  DEFAULT_CLEARANCE_M)
-    return {"clearance_m": DEFAULT_CLEARANCE_M, "reachable_area_m2": round(area_m2, 2), "coverage": round(coverage, 6)}
+    try:
+        area_m2, coverage = coverage_within_clearance(result.world.occ, result.world.observed_union(), (x, y),
+                                                      PLANNER_CLEARANCE_M)
+    except ValueError:
+        return None
+    return {"clearance_m": PLANNER_CLEARANCE_M, "reachable_area_m2": round(area_m2, 2), "coverage": round(coverage, 6)}
 
 
 def _receptions(fates: dict[str, int]) -> str:

@@ -86,6 +86,13 @@ def test_cli_run_json_and_png(tmp_path):
     assert (tmp_path / "mission.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_a_start_too_close_to_a_wall_for_the_planners_clearance_has_no_such_coverage():
+    # 0.31 m from the nearest wall: room for the 0.25 m body, not for the planner's 0.32 m.
+    out = _cli("run", "--map", "cave:4:40x40", "--start", "13.75,4.45", "--max-sim-s", "2", "--json", "--quiet")
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)["coverage_within_planner_clearance"] is None
+
+
 def test_cli_run_reports_a_bad_map_clearly(tmp_path):
     bad = tmp_path / "m.yaml"
     bad.write_text("image: m.pgm\nresolution: -1\norigin: [0, 0, 0]\nnegate: 0\n"
