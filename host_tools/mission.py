@@ -75,9 +75,9 @@ class MissionResult:
     radio: dict
     air_log_sha256: str
     coverage_raw: float = math.nan   # against the raw 4-connected component, slivers included
+    start_poses: list[Pose] = field(default_factory=list)      # (x_m, y_m, yaw_rad) per robot
     # For plots (not in the JSON).
     trajectories: list[np.ndarray] = field(repr=False, default_factory=list)
-    start_poses: list[Pose] = field(default_factory=list)      # (x_m, y_m, yaw_rad) per robot
     world: object = field(repr=False, default=None)
     agents: list = field(repr=False, default_factory=list)
     reachable: np.ndarray | None = field(repr=False, default=None)
@@ -241,7 +241,8 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
             capture.close()
 
 
-def start_poses(occ, map_start: Pose, starts: tuple[Pose, ...], robots: int) -> list[Pose]:
+def start_poses(occ, map_start: Pose, starts: tuple[tuple[float, float, float | None], ...],
+                robots: int) -> list[Pose]:
     """Every robot's start pose from a mission's `starts` (see MissionConfig). Raises
     ValueError naming the start when there are neither one nor `robots` of them, or one is
     not on a free cell of the map (the world then checks that each body fits there)."""
