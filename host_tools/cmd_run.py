@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -28,7 +29,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="drive every robot's radio through a virtual RN2483 modem on a pseudo-terminal")
     p.add_argument("--capture", type=Path, default=None, metavar="FILE",
                    help="record every frame on the air (for lorascout inspect)")
-    p.add_argument("--start", type=_xy, default=None, metavar="X,Y", help="start position in metres (default: the map's)")
+    p.add_argument("--start", type=_pose, action="append", default=[], metavar="X,Y[,YAW_DEG]",
+                   help="start pose in metres (and degrees; default the map's yaw): once, the centre of the team's "
+                        "staging area (default: the map's start); once per robot, each robot's own start")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="overrides",
                    help="change an explorer parameter (firmware/params.py); repeatable")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
@@ -36,12 +39,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def _xy(text: str) -> tuple[float, float]:
+def _pose(text: str) -> tuple[float, float, float | None]:
     try:
-        x, y = (float(v) for v in text.split(","))
+        values = tuple(float(v) for v in text.split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y in metres, got {text!r}") from None
-    return x, y
+        values = ()
+    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected X,Y or X,Y,YAW_DEG as numbers, got {text!r}")
+    return (values[0], values[1], math.radians(values[2]) if len(values) == 3 else None)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -49,7 +54,7 @@ def main(args: argparse.Namespace) -> int:
         print("lorascout run: --robots must be at least 1", file=sys.stderr)
         return 2
     cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
-                        max_sim_s=args.max_sim_s, radio=args.radio, start_xy=args.start,
+                        max_sim_s=args.max_sim_s, radio=args.radio, starts=tuple(args.start),
                         strategy=args.strategy, serial_radio=args.serial_radio,
                         capture_path=None if args.capture is None else str(args.capture))
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
