@@ -8,20 +8,15 @@ import json
 import sys
 from pathlib import Path
 
-from firmware.params import ExplorationParams
-from host_tools.map_report import drivable_centres, observable_share
+from host_tools.map_report import PLANNER_CLEARANCE_M, drivable_centres, observable_share
 from host_tools.progress import progress_bar
 from world_sim.map_spec import resolve_map
 from world_sim.world import WorldParams
 
-_PLANNER = ExplorationParams()
-DEFAULT_CLEARANCE_M = round(_PLANNER.robot_radius_m + _PLANNER.safety_margin_m, 6)
-
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--map", default="cave:1",
                    help="PATH.yaml (ROS map_server), cave:SEED[:WxH] or tunnel:SEED[:WxH] (default %(default)s)")
-    p.add_argument("--clearance-m", type=float, nargs="+", default=[DEFAULT_CLEARANCE_M], metavar="M",
+    p.add_argument("--clearance-m", type=float, nargs="+", default=[PLANNER_CLEARANCE_M], metavar="M",
                    help="the planner's distance from wall cells, one or more (default: the firmware's robot "
                         "radius plus safety margin, %(default)s)")
     p.add_argument("--stride-m", type=float, default=0.1,

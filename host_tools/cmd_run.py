@@ -75,6 +75,7 @@ def main(args: argparse.Namespace) -> int:
     bar.close()
     report = result.to_json()
     report["params_overrides"] = dict(overrides)
+    report["coverage_within_planner_clearance"] = _within_clearance(result)
     if args.out is not None:
         from host_tools.plots import plot_mission
 
@@ -90,6 +91,22 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
+def _within_clearance(result) -> dict | None:
+    """Coverage of the area a robot keeping the planner's clearance (robot radius plus safety
+    margin) can reach from robot 0's start, next to the body-reachable area the mission
+    scores: rooms behind doors narrower than twice the clearance count only in the latter.
+    None when that start is too close to a wall for the clearance."""
+    from host_tools.map_report import PLANNER_CLEARANCE_M, coverage_within_clearance
+
+    x, y = result.start_poses[0][:2]
+    try:
+        area_m2, coverage = coverage_within_clearance(result.world.occ, result.world.observed_union(), (x, y),
+                                                      PLANNER_CLEARANCE_M)
+    except ValueError:
+        return None
+    return {"clearance_m": PLANNER_CLEARANCE_M, "reachable_area_m2": round(area_m2, 2), "coverage": round(coverage, 6)}
+
+
 def _receptions(fates: dict[str, int]) -> str:
     """What became of each frame at each robot in range of hearing it: 'received 812,
     collided 3 (0.4 %)'; the losses with their share of all receptions."""
@@ -102,13 +119,21 @@ def _receptions(fates: dict[str, int]) -> str:
     return ", ".join(parts)
 
 
+def _clearance_note(c: dict | None, reachable_m2: float) -> str:
+    if c is None or c["reachable_area_m2"] >= 0.99 * reachable_m2:
+        return ""           # a few cells' difference along walls says nothing
+    return (f" ({c['coverage'] * 100:.2f} % of the {c['reachable_area_m2']:.0f} m² a robot keeping the planner's "
+            f"{c['clearance_m']} m from walls can reach)")
+
+
 def format_summary(r: dict) -> str:
     t90 = "not reached" if r["t_90_s"] is None else f"{r['t_90_s']:.1f} s"
     paths = ", ".join(f"{p:.1f}" for p in r["path_length_m"])
     lines = [
         f"map            {r['map']}   (reachable free area {r['reachable_area_m2']:.0f} m²)",
         f"robots         {r['robots']}   seed {r['seed']}   strategy {r['strategy']}   radio {r['radio']}",
-        f"coverage       {r['coverage'] * 100:.2f} % of the reachable free area",
+        f"coverage       {r['coverage'] * 100:.2f} % of the reachable free area"
+        + _clearance_note(r.get("coverage_within_planner_clearance"), r["reachable_area_m2"]),
         f"path length    {paths} m   (longest {max(r['path_length_m']):.1f} m: this trial's p_max)",
         f"T_total        {r['t_total_s']:.1f} s simulated",
         f"T_90           {t90}",

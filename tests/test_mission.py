@@ -81,10 +81,18 @@ def test_cli_run_json_and_png(tmp_path):
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)
     for key in ("coverage", "path_length_m", "t_total_s", "t_90_s", "termination", "wall_s", "sim_speedup",
-                "seed", "map"):
+                "seed", "map", "coverage_within_planner_clearance"):
         assert key in report
+    assert report["coverage_within_planner_clearance"]["clearance_m"] == 0.32
     assert report["termination"] == "time_limit" and 0 < report["coverage"] <= 1
     assert (tmp_path / "mission.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_start_too_close_to_a_wall_for_the_planners_clearance_has_no_such_coverage():
+    # 0.31 m from the nearest wall: room for the 0.25 m body, not for the planner's 0.32 m.
+    out = _cli("run", "--map", "cave:4:40x40", "--start", "13.75,4.45", "--max-sim-s", "2", "--json", "--quiet")
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)["coverage_within_planner_clearance"] is None
 
 
 def test_cli_run_reports_a_bad_map_clearly(tmp_path):
@@ -131,6 +139,11 @@ def test_the_summary_names_the_longest_path_and_what_became_of_the_frames():
     assert "receptions     received 10, collided 2 (16.7 %)\n" in text
     report["radio_stats"]["receptions"] = {}
     assert "receptions     none (no frame was sent)" in format_summary(report)
+    report["coverage_within_planner_clearance"] = {"clearance_m": 0.32, "reachable_area_m2": 88.0, "coverage": 0.6}
+    assert "50.00 % of the reachable free area (60.00 % of the 88 m² a robot keeping the planner's 0.32 m" in \
+        format_summary(report)
+    report["coverage_within_planner_clearance"]["reachable_area_m2"] = 99.5
+    assert "reachable free area\n" in format_summary(report)
 
 
 def two_rooms(folder) -> str:

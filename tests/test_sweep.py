@@ -26,6 +26,10 @@ def test_the_ratio_interval_is_a_seeded_bootstrap_of_the_ratio_of_medians():
     wide = ratio_interval([100.0, 400.0, 800.0], [400.0, 410.0, 420.0])
     assert wide[0] < 0.5 and wide[1] > 1.5                                  # spread widens it
     assert ratio_interval(same, same, level=0.5)[1] < ratio_interval(same, same)[1]
+    # The trials' order (the order they finished in) does not matter.
+    a = [360.0, 465.8, 860.9, 707.5, 365.9, 603.2, 635.3, 411.8, 814.2, 379.6]
+    b = [417.4, 455.0, 429.2, 476.0, 521.4, 586.9, 385.3, 494.6, 508.9, 387.8]
+    assert ratio_interval(a, b) == ratio_interval(a[::-1], b[3:] + b[:3])
 
 
 def test_local_sweep_writes_tables_and_figures(tmp_path):
