@@ -107,12 +107,12 @@ def _within_clearance(result) -> dict | None:
     return {"clearance_m": PLANNER_CLEARANCE_M, "reachable_area_m2": round(area_m2, 2), "coverage": round(coverage, 6)}
 
 
-def _receptions(fates: dict[str, int]) -> str:
+def _receptions(fates: dict[str, int], frames_sent: int) -> str:
     """What became of each frame at each robot in range of hearing it: 'received 812,
     collided 3 (0.4 %)'; the losses with their share of all receptions."""
     total = sum(fates.values())
     if not total:
-        return "none (no frame was sent)"
+        return "none (no other robot on the air)" if frames_sent else "none (no frame was sent)"
     parts = [f"received {fates.get('received', 0)}"]
     parts += [f"{fate.replace('_', ' ')} {n} ({100 * n / total:.1f} %)"
               for fate, n in sorted(fates.items()) if fate != "received" and n]
@@ -142,7 +142,7 @@ def format_summary(r: dict) -> str:
         f"radio          {', '.join(f'{b:.1f}' for b in r['radio_stats']['bytes_per_s_mean'])} B/s per robot (mean), "
         f"airtime {', '.join(f'{a * 100:.2f}' for a in r['radio_stats']['airtime_fraction'])} %, "
         f"duty-cycle violations {r['radio_stats']['duty_cycle_violations']}",
-        f"receptions     {_receptions(r['radio_stats']['receptions'])}",
+        f"receptions     {_receptions(r['radio_stats']['receptions'], sum(r['radio_stats']['frames_sent']))}",
         f"in a wall      {r['robots_in_wall']} robot-ticks",
         f"speed          {r['sim_speedup']:.1f}x real time, {r['ticks_per_s']:.0f} ticks/s, {r['wall_s']:.1f} s wall",
     ]

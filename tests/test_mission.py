@@ -132,13 +132,15 @@ def test_the_summary_names_the_longest_path_and_what_became_of_the_frames():
               "t_90_s": None, "termination": "time_limit", "robot_status": ["exploring", "exploring"],
               "overlap": 0.1, "robots_in_wall": 0, "sim_speedup": 10.0, "ticks_per_s": 200.0, "wall_s": 6.0,
               "radio_stats": {"bytes_per_s_mean": [10.0, 11.0], "airtime_fraction": [0.01, 0.02],
-                              "duty_cycle_violations": 0,
+                              "duty_cycle_violations": 0, "frames_sent": [0, 0],
                               "receptions": {"collided": 2, "out_of_range": 0, "received": 10}}}
     text = format_summary(report)
     assert "(longest 34.2 m: this trial's p_max)" in text
     assert "receptions     received 10, collided 2 (16.7 %)\n" in text
     report["radio_stats"]["receptions"] = {}
     assert "receptions     none (no frame was sent)" in format_summary(report)
+    report["radio_stats"]["frames_sent"] = [5, 0]            # one robot alone sends to nobody
+    assert "receptions     none (no other robot on the air)" in format_summary(report)
     report["coverage_within_planner_clearance"] = {"clearance_m": 0.32, "reachable_area_m2": 88.0, "coverage": 0.6}
     assert "50.00 % of the reachable free area (60.00 % of the 88 m² a robot keeping the planner's 0.32 m" in \
         format_summary(report)
