@@ -136,12 +136,7 @@ class OdriveDiffDrive:
             self._bus.send(set_axis_state(node, AXIS_STATE_IDLE))
 
     def command(self, v_mps: float, omega_radps: float) -> None:
-        for name, value in (("v_mps", v_mps), ("omega_radps", omega_radps)):
-            if not math.isfinite(value):
-                raise ValueError(f"OdriveDiffDrive.command: {name} must be finite, got {value!r}")
-        lim = self._limits
-        v = min(max(float(v_mps), -lim.max_v_mps), lim.max_v_mps)
-        w = min(max(float(omega_radps), -lim.max_omega_radps), lim.max_omega_radps)
+        v, w = self._limits.clip(v_mps, omega_radps, "OdriveDiffDrive.command")
         left, right = self.geometry.wheel_turns_per_s(v, w)
         self._bus.send(set_input_vel(self.geometry.left_node, left))
         self._bus.send(set_input_vel(self.geometry.right_node, right))

@@ -79,12 +79,17 @@ def test_map_is_a_function_of_the_record_set(recs, rnd, data):
     assert sa == sb and np.array_equal(da, db)
 
 
-@SETTINGS
-@given(records, st.data())
-def test_graph_costs_match_networkx(recs, data):
+def map_of(recs) -> TopoMap:
     t = TopoMap(1.0, 2.5)
     for r in recs:
         t.add(r)
+    return t
+
+
+@SETTINGS
+@given(records, st.data())
+def test_graph_costs_match_networkx(recs, data):
+    t = map_of(recs)
     xy = t.positions()
     g = nx.Graph()
     g.add_nodes_from(range(len(xy)))
@@ -104,9 +109,7 @@ def test_graph_costs_match_networkx(recs, data):
 @SETTINGS
 @given(records, st.data())
 def test_costs_to_many_points_are_cost_to_each_bit_for_bit(recs, data):
-    t = TopoMap(1.0, 2.5)
-    for r in recs:
-        t.add(r)
+    t = map_of(recs)
     xy = t.positions()
     src = data.draw(st.integers(0, len(xy) - 1))
     _, dist, _ = t.costs_from(*xy[src])
