@@ -13,6 +13,7 @@ from host_tools.progress import progress_bar
 from world_sim.map_spec import resolve_map
 from world_sim.world import WorldParams
 
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--map", default="cave:1",
                    help="PATH.yaml (ROS map_server), cave:SEED[:WxH] or tunnel:SEED[:WxH] (default %(default)s)")
