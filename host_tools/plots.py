@@ -71,11 +71,8 @@ def _draw_paths(ax, occ, trial: dict, legend: bool) -> None:
         ax.legend(loc="upper right", fontsize=7)
 
 
-def plot_sweep_paths(map_spec: str, trial: dict, path: Path) -> None:
+def plot_sweep_paths(occ, label: str, trial: dict, path: Path) -> None:
     """Every robot's path in one trial of a sweep (Bayer & Faigl Figs. 8 and 9)."""
-    from world_sim.map_spec import resolve_map
-
-    occ, _, label = resolve_map(map_spec)
     fig, ax = plt.subplots(figsize=(7, 7), constrained_layout=True)
     _draw_paths(ax, occ, trial, legend=True)
     ax.set_title(f"{label}, {trial['strategy']}, seed {trial['seed']}: longest path "
@@ -84,21 +81,18 @@ def plot_sweep_paths(map_spec: str, trial: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def plot_sweep_overview(maps: list[str], strategies: list[str], first: dict, path: Path) -> None:
-    """One panel per map (rows) and strategy (columns) with every robot's path in the trial
-    `first[(map_spec, strategy)]`, so the strategies can be compared at a glance."""
-    from world_sim.map_spec import resolve_map
-
-    fig, axes = plt.subplots(len(maps), len(strategies), figsize=(3.2 * len(strategies), 3.2 * len(maps)),
+def plot_sweep_overview(rows: list[tuple], path: Path) -> None:
+    """One panel per map (rows of (occ, label, one trial per strategy)) and strategy
+    (columns) with every robot's path, so the strategies can be compared at a glance."""
+    columns = max(len(trials) for _, _, trials in rows)
+    fig, axes = plt.subplots(len(rows), columns, figsize=(3.2 * columns, 3.2 * len(rows)),
                              constrained_layout=True, squeeze=False)
-    for r, m in enumerate(maps):
-        occ, _, label = resolve_map(m)
-        for c, s in enumerate(strategies):
+    for r, (occ, label, trials) in enumerate(rows):
+        for c, trial in enumerate(trials):
             ax = axes[r][c]
-            trial = first[(m, s)]
             _draw_paths(ax, occ, trial, legend=False)
-            ax.set_title(f"{label}, {s}, seed {trial['seed']}\nlongest {max(trial['path_length_m']):.0f} m, "
-                         f"coverage {trial['coverage'] * 100:.1f} %", fontsize=8)
+            ax.set_title(f"{label}, {trial['strategy']}, seed {trial['seed']}\nlongest "
+                         f"{max(trial['path_length_m']):.0f} m, coverage {trial['coverage'] * 100:.1f} %", fontsize=8)
             ax.set_xlabel("")
             ax.set_ylabel("")
             ax.tick_params(labelsize=6)
@@ -106,13 +100,15 @@ def plot_sweep_overview(maps: list[str], strategies: list[str], first: dict, pat
     plt.close(fig)
 
 
-def plot_sweep_p_max(maps: list[str], strategies: list[str], longest: dict, radio: str, path: Path) -> None:
-    """The longest robot path of every trial, one dot per seed, per map and strategy, with the
-    median (p_max) as a bar: how far apart single trials lie next to the medians compared."""
-    fig, axes = plt.subplots(1, len(maps), figsize=(3.6 * len(maps), 3.6), constrained_layout=True, squeeze=False)
-    for ax, m in zip(axes[0], maps):
+def plot_sweep_p_max(labels: list[str], strategies: list[str], longest: list[dict], radio: str, path: Path) -> None:
+    """The longest robot path of every trial, one dot per seed, per map (labels[i], with
+    longest[i][strategy] the values) and strategy, with the median (p_max) as a bar: how far
+    apart single trials lie next to the medians compared."""
+    fig, axes = plt.subplots(1, len(labels), figsize=(3.6 * len(labels), 3.6), constrained_layout=True,
+                             squeeze=False)
+    for ax, label, by_strategy in zip(axes[0], labels, longest):
         for k, s in enumerate(strategies):
-            values = np.asarray(longest.get((m, s), []), dtype=float)
+            values = np.asarray(by_strategy.get(s, []), dtype=float)
             if not len(values):
                 continue
             ax.plot(np.full(len(values), k) + np.linspace(-0.15, 0.15, len(values)), values, "o",
@@ -120,7 +116,7 @@ def plot_sweep_p_max(maps: list[str], strategies: list[str], longest: dict, radi
             ax.plot([k - 0.3, k + 0.3], [np.median(values)] * 2, color="black", lw=1.5)
         ax.set_xticks(range(len(strategies)))
         ax.set_xticklabels(strategies, rotation=30, ha="right", fontsize=8)
-        ax.set_title(Path(m).name if m.endswith(".yaml") else m, fontsize=9)
+        ax.set_title(label, fontsize=9)
         ax.set_ylabel("longest robot path [m]")
         ax.set_ylim(bottom=0)
         ax.grid(axis="y", alpha=0.3)

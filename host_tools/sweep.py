@@ -391,14 +391,21 @@ def save(out: Path, spec: SweepSpec, results: list[dict]) -> dict:
         for r in sorted(results, key=lambda r: (r["radio"], r["map_spec"], r["strategy"], r["seed"])):
             f.write(json.dumps({k: v for k, v in r.items() if k != "paths_xy"}, sort_keys=True) + "\n")
     from host_tools.plots import plot_sweep_overview, plot_sweep_p_max, plot_sweep_paths
+    from world_sim.map_spec import resolve_map
 
-    first, longest = {}, {}
+    rows, labels, longest = [], [], []
     for m in spec.maps:
+        occ, _, label = resolve_map(m)          # once per map: a cave is generated anew each time
+        firsts, by_strategy = [], {}
         for s in spec.strategies:
             trials = [r for r in results if r["map_spec"] == m and r["strategy"] == s and r["radio"] == spec.radio]
-            first[(m, s)] = min(trials, key=lambda r: r["seed"])
-            longest[(m, s)] = [max(r["path_length_m"]) for r in trials]
-            plot_sweep_paths(m, first[(m, s)], out / f"paths_{Path(first[(m, s)]['map']).stem.replace(':', '_')}_{s}.png")
-    plot_sweep_overview(list(spec.maps), list(spec.strategies), first, out / "paths_overview.png")
-    plot_sweep_p_max(list(spec.maps), list(spec.strategies), longest, spec.radio, out / "p_max_by_trial.png")
+            first = min(trials, key=lambda r: r["seed"])
+            firsts.append(first)
+            by_strategy[s] = [max(r["path_length_m"]) for r in trials]
+            plot_sweep_paths(occ, label, first, out / f"paths_{Path(first['map']).stem.replace(':', '_')}_{s}.png")
+        rows.append((occ, label, firsts))
+        labels.append(label)
+        longest.append(by_strategy)
+    plot_sweep_overview(rows, out / "paths_overview.png")
+    plot_sweep_p_max(labels, list(spec.strategies), longest, spec.radio, out / "p_max_by_trial.png")
     return t
