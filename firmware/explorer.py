@@ -236,9 +236,9 @@ class Explorer:
         local = [self._in_window(wi, wj) and reachable[wi, wj] for wi, wj in cells]
         local_ij = np.array([ij for ij, ok in zip(cells, local) if ok], np.int64).reshape(-1, 2)
         paths.settle(local_ij[:, 0], local_ij[:, 1])
-        for c, (wi, wj), ok in zip(candidates, cells, local):
-            graph_cost, _ = self.topo.cost_to(topo_dist, c.x_m, c.y_m)
-            c.graph_cost_m = graph_cost + to_src_m
+        graph_costs = self.topo.costs_to(topo_dist, [c.x_m for c in candidates], [c.y_m for c in candidates])
+        for c, (wi, wj), ok, graph_cost in zip(candidates, cells, local, graph_costs):
+            c.graph_cost_m = float(graph_cost) + to_src_m
             c.cost_m = float(paths.dist[wi, wj]) * res if ok else c.graph_cost_m
         if self.team.strategy.ranking == "minpos":
             self._minpos_ranks(candidates)
@@ -458,9 +458,9 @@ class Explorer:
                 continue
             sx, sy = self.topo.positions()[src]
             lead = math.hypot(sx - ox, sy - oy)
-            for c in candidates:
-                other, _ = self.topo.cost_to(dist, c.x_m, c.y_m)
-                if other + lead < c.graph_cost_m:
+            others = self.topo.costs_to(dist, [c.x_m for c in candidates], [c.y_m for c in candidates])
+            for c, other in zip(candidates, others):
+                if float(other) + lead < c.graph_cost_m:
                     c.rank += 1
 
     def _choose(self, candidates: list[_Candidate]) -> _Candidate:

@@ -328,6 +328,20 @@ class TopoMap:
         k = int(np.argmin(line))
         return float(dist[k] + line[k]), k
 
+    def costs_to(self, dist: np.ndarray, xs_m: np.ndarray, ys_m: np.ndarray) -> np.ndarray:
+        """cost_to for many points at once (the same numbers, bit for bit): inf for every
+        point when no vertex is reached."""
+        xs_m = np.asarray(xs_m, np.float64)
+        ys_m = np.asarray(ys_m, np.float64)
+        reached = np.isfinite(dist)
+        if not reached.any() or len(xs_m) == 0:
+            return np.full(len(xs_m), math.inf)
+        xy = self.positions()
+        line = np.hypot(xy[None, :, 0] - xs_m[:, None], xy[None, :, 1] - ys_m[:, None])
+        line[:, ~reached] = np.inf
+        k = np.argmin(line, axis=1)
+        return dist[k] + line[np.arange(len(xs_m)), k]
+
     @staticmethod
     def path(parent: np.ndarray, dst: int) -> list[int]:
         out = [dst]

@@ -1,7 +1,7 @@
 """Backend registry: peripheral kind -> backend name -> (module, class).
 
-Only the chosen backend's module is imported, so a robot without pyserial never imports
-it, and the simulator never imports real drivers (the python-can pattern).
+Only the chosen backend's module is imported, so a robot without pyserial or python-can
+never imports them, and the simulator never imports real drivers (the python-can pattern).
 """
 from __future__ import annotations
 
@@ -10,8 +10,14 @@ import importlib
 BACKENDS: dict[str, dict[str, tuple[str, str]]] = {
     "clock": {"sim": ("hal.sim.clock", "SimClock")},
     "lidar": {"sim": ("hal.sim.lidar", "SimLidar")},
-    "odometry": {"sim": ("hal.sim.odometry", "SimOdometry")},
-    "drive": {"sim": ("hal.sim.drive", "SimDriveBase")},
+    "odometry": {
+        "sim": ("hal.sim.odometry", "SimOdometry"),
+        "odrive-can": ("hal.odrive_can", "OdriveWheelOdometry"),
+    },
+    "drive": {
+        "sim": ("hal.sim.drive", "SimDriveBase"),
+        "odrive-can": ("hal.odrive_can", "OdriveDiffDrive"),
+    },
     "uwb": {"sim": ("hal.sim.uwb", "SimUwbRanger")},
     "aoa": {"sim": ("hal.sim.aoa", "SimWifiAoa")},
     "radio": {

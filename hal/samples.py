@@ -5,6 +5,7 @@ mission clock) and every field carries its unit in its name.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +41,15 @@ class DriveLimits:
     max_v_mps: float
     max_omega_radps: float
     robot_radius_m: float
+
+    def clip(self, v_mps: float, omega_radps: float, who: str) -> tuple[float, float]:
+        """A body velocity command within the limits, as every drive backend applies it.
+        Raises ValueError naming `who` for a value that is not finite."""
+        for name, value in (("v_mps", v_mps), ("omega_radps", omega_radps)):
+            if not math.isfinite(value):
+                raise ValueError(f"{who}: {name} must be finite, got {value!r}")
+        return (min(max(float(v_mps), -self.max_v_mps), self.max_v_mps),
+                min(max(float(omega_radps), -self.max_omega_radps), self.max_omega_radps))
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -28,7 +29,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="drive every robot's radio through a virtual RN2483 modem on a pseudo-terminal")
     p.add_argument("--capture", type=Path, default=None, metavar="FILE",
                    help="record every frame on the air (for lorascout inspect)")
-    p.add_argument("--start", type=_xy, default=None, metavar="X,Y", help="start position in metres (default: the map's)")
+    p.add_argument("--start", type=_pose, action="append", default=[], metavar="X,Y[,YAW_DEG]",
+                   help="start pose in metres (and degrees; default the map's yaw): once, the centre of the team's "
+                        "staging area (default: the map's start); once per robot, each robot's own start")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="overrides",
                    help="change an explorer parameter (firmware/params.py); repeatable")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
@@ -36,12 +39,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def _xy(text: str) -> tuple[float, float]:
+def _pose(text: str) -> tuple[float, float, float | None]:
     try:
-        x, y = (float(v) for v in text.split(","))
+        values = tuple(float(v) for v in text.split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y in metres, got {text!r}") from None
-    return x, y
+        values = ()
+    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected X,Y or X,Y,YAW_DEG as numbers, got {text!r}")
+    return (values[0], values[1], math.radians(values[2]) if len(values) == 3 else None)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -49,7 +54,7 @@ def main(args: argparse.Namespace) -> int:
         print("lorascout run: --robots must be at least 1", file=sys.stderr)
         return 2
     cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
-                        max_sim_s=args.max_sim_s, radio=args.radio, start_xy=args.start,
+                        max_sim_s=args.max_sim_s, radio=args.radio, starts=tuple(args.start),
                         strategy=args.strategy, serial_radio=args.serial_radio,
                         capture_path=None if args.capture is None else str(args.capture))
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
@@ -90,11 +95,10 @@ def _within_clearance(result) -> dict | None:
     """Coverage of the area a robot keeping the planner's clearance (robot radius plus safety
     margin) can reach from robot 0's start, next to the body-reachable area the mission
     scores: rooms behind doors narrower than twice the clearance count only in the latter.
-    Robot 0's first recorded position stands for its start (one 50 ms tick later, in the same
-    staging area). None when that start is too close to a wall for the clearance."""
+    None when that start is too close to a wall for the clearance."""
     from host_tools.map_report import PLANNER_CLEARANCE_M, coverage_within_clearance
 
-    x, y = (float(v) for v in result.trajectories[0][0][:2])
+    x, y = result.start_poses[0][:2]
     try:
         area_m2, coverage = coverage_within_clearance(result.world.occ, result.world.observed_union(), (x, y),
                                                       PLANNER_CLEARANCE_M)

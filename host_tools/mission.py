@@ -30,7 +30,7 @@ from host_tools.cmd_inspect import sender_stats
 from radio_sim.air_log import AirFrame
 from radio_sim.channel import Channel
 from radio_sim.virtual_modem import open_serial_radios
-from world_sim.map_spec import resolve_map, staging_poses
+from world_sim.map_spec import Pose, resolve_map, staging_poses
 from world_sim.ros_map import reachable_free
 from world_sim.world import World, WorldParams
 
@@ -45,7 +45,11 @@ class MissionConfig:
     max_sim_s: float = 14400.0
     radio: str = "ideal-100Bps"
     strategy: str = "greedy"
-    start_xy: tuple[float, float] | None = None
+    # Start poses (x_m, y_m, yaw_rad or None for the map's yaw): none, the map's start; one, a
+    # staging area around it (the team's common start, as Bayer & Faigl's robots start); one
+    # per robot, exactly those. The robots' odometry starts from these poses, so they share
+    # one frame, as a team that measured its start poses at deployment does.
+    starts: tuple[tuple[float, float, float | None], ...] = ()
     serial_radio: bool = False          # every robot's radio through a virtual RN2483 on a pty
     capture_path: str | None = None     # record every frame on the air (JSON Lines capture)
 
@@ -71,6 +75,7 @@ class MissionResult:
     radio: dict
     air_log_sha256: str
     coverage_raw: float = math.nan   # against the raw 4-connected component, slivers included
+    start_poses: list[Pose] = field(default_factory=list)      # (x_m, y_m, yaw_rad) per robot
     # For plots (not in the JSON).
     trajectories: list[np.ndarray] = field(repr=False, default_factory=list)
     world: object = field(repr=False, default=None)
@@ -109,6 +114,7 @@ class MissionResult:
             "coverage_raw_component": round(self.coverage_raw, 6),
             "overlap": round(self.overlap, 6),
             "path_length_m": [round(p, 3) for p in self.path_length_m],
+            "start_poses": [[round(x, 3), round(y, 3), round(yaw, 4)] for x, y, yaw in self.start_poses],
             "t_total_s": round(self.t_total_s, 3),
             "t_90_s": None if self.t_90_s is None else round(self.t_90_s, 3),
             "termination": self.termination,
@@ -187,15 +193,12 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 rates: TaskRates = TaskRates(),
                 world_params: WorldParams = WorldParams()) -> MissionResult:
     occ, start, label = resolve_map(cfg.map_spec)
-    if cfg.start_xy is not None:
-        start = (cfg.start_xy[0], cfg.start_xy[1], start[2])
-    poses = staging_poses(occ, start, cfg.robots) if cfg.robots > 1 else [start]
+    poses = start_poses(occ, start, cfg.starts, cfg.robots)
     world = World(occ, poses, cfg.seed, world_params)
-    # Scored against the free area a robot body can reach from the start (see reachable_free);
+    # Scored against the free area a robot body can reach from the starts (see reachable_free);
     # the figure against the raw 4-connected free component is reported too.
-    reachable = reachable_free(occ, (poses[0][0], poses[0][1]), connectivity=4,
-                               robot_radius_m=world_params.robot_radius_m)
-    reachable_raw = reachable_free(occ, (poses[0][0], poses[0][1]), connectivity=4)
+    reachable = _reachable_from(occ, poses, robot_radius_m=world_params.robot_radius_m)
+    reachable_raw = _reachable_from(occ, poses)
     profile = radio_profile(cfg.radio)
     strategy = strategy_named(cfg.strategy)
     channel = Channel(profile, cfg.seed, occupancy=occ)
@@ -227,6 +230,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         result = _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh,
                        progress, profiler, rates)
         result.coverage_raw = float((world.observed_union() & reachable_raw).sum()) / int(reachable_raw.sum())
+        result.start_poses = poses
         return result
     finally:
         if bank is not None:
@@ -235,6 +239,35 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
             bank.close()
         if capture is not None:
             capture.close()
+
+
+def start_poses(occ, map_start: Pose, starts: tuple[tuple[float, float, float | None], ...],
+                robots: int) -> list[Pose]:
+    """Every robot's start pose from a mission's `starts` (see MissionConfig). Raises
+    ValueError naming the start when there are neither one nor `robots` of them, or one is
+    not on a free cell of the map (the world then checks that each body fits there)."""
+    if len(starts) not in (0, 1, robots):
+        raise ValueError(f"give one start pose (a staging area) or one per robot ({robots}), got {len(starts)}")
+    for k, (x, y, _) in enumerate(starts):
+        if not occ.is_free_point(x, y):
+            raise ValueError(f"start {k + 1} ({x:.3f}, {y:.3f}) m is not on a free cell of map '{occ.name}'")
+    poses = [(float(x), float(y), map_start[2] if yaw is None else float(yaw)) for x, y, yaw in starts]
+    if len(poses) == robots and robots > 1:
+        return poses
+    centre = poses[0] if poses else map_start
+    return staging_poses(occ, centre, robots) if robots > 1 else [centre]
+
+
+def _reachable_from(occ, poses: list[Pose], robot_radius_m: float | None = None) -> np.ndarray:
+    """The union of the free components reachable from every start: robots given starts in
+    separate parts of a map explore all of them. Staging areas lie in one component, so for
+    them this is the first start's component."""
+    reachable = reachable_free(occ, poses[0][:2], connectivity=4, robot_radius_m=robot_radius_m)
+    for x, y, _ in poses[1:]:
+        row, col = occ.cell_of(x, y)
+        if not reachable[row, col]:
+            reachable |= reachable_free(occ, (x, y), connectivity=4, robot_radius_m=robot_radius_m)
+    return reachable
 
 
 def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh, progress, profiler, rates):

@@ -1,10 +1,12 @@
 """Missions end to end: exploration on a real map, determinism, the serial radio path, the
 command line, and a capture of a team run decoded by Wireshark's tshark."""
 import json
+import math
 import shutil
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from firmware.params import ExplorationParams
@@ -144,3 +146,53 @@ def test_the_summary_names_the_longest_path_and_what_became_of_the_frames():
         format_summary(report)
     report["coverage_within_planner_clearance"]["reachable_area_m2"] = 99.5
     assert "reachable free area\n" in format_summary(report)
+
+
+def two_rooms(folder) -> str:
+    """A ROS map of two 6 m x 4 m rooms, 2 m apart with no way between them (0.1 m cells;
+    the left room spans x 1..7 m, the right one x 9..15 m, both y 1..5 m)."""
+    from tests.test_maps_ros import write_map
+
+    pixels = np.zeros((60, 160), dtype=np.uint8)            # rows top-down: all wall
+    pixels[10:50, 10:70] = 255
+    pixels[10:50, 90:150] = 255
+    return str(write_map(folder, pixels))
+
+
+def test_each_robot_starts_where_it_is_told_and_the_team_covers_every_start_s_part_of_the_map(tmp_path):
+    m = two_rooms(tmp_path)
+    starts = ((3.0, 3.0, 0.0), (12.0, 3.0, math.pi / 2))
+    r = run_mission(MissionConfig(map_spec=m, robots=2, seed=1, max_sim_s=1.0, starts=starts))
+    assert r.start_poses == [(3.0, 3.0, 0.0), (12.0, 3.0, math.pi / 2)]
+    for t, (x, y, _) in zip(r.trajectories, starts):
+        assert math.hypot(t[0, 0] - x, t[0, 1] - y) < 0.1
+    both = r.reachable_area_m2
+    alone = run_mission(MissionConfig(map_spec=m, robots=1, seed=1, max_sim_s=1.0, starts=starts[:1]))
+    assert alone.start_poses == [(3.0, 3.0, 0.0)]
+    assert both == pytest.approx(2 * alone.reachable_area_m2) and 20 < alone.reachable_area_m2 <= 24
+    # One start for a team is the centre of its staging area, in the map's heading when none is given.
+    team = run_mission(MissionConfig(map_spec=m, robots=3, seed=1, max_sim_s=1.0, starts=((12.0, 3.0, None),)))
+    assert team.start_poses[0][:2] == (12.0, 3.0) and team.reachable_area_m2 == alone.reachable_area_m2
+    assert all(9 < x < 15 and 1 < y < 5 for x, y, _ in team.start_poses)
+    assert len({p[:2] for p in team.start_poses}) == 3 and len({p[2] for p in team.start_poses}) == 1
+
+
+def test_start_poses_that_do_not_fit_are_refused_with_the_reason(tmp_path):
+    m = two_rooms(tmp_path)
+    with pytest.raises(ValueError, match=r"one per robot \(3\), got 2"):
+        run_mission(MissionConfig(map_spec=m, robots=3, starts=((3.0, 3.0, 0.0), (4.0, 3.0, 0.0))))
+    with pytest.raises(ValueError, match=r"start 2 \(8\.000, 3\.000\) m is not on a free cell"):
+        run_mission(MissionConfig(map_spec=m, robots=2, starts=((3.0, 3.0, 0.0), (8.0, 3.0, 0.0))))
+
+
+def test_cli_run_takes_a_start_pose_per_robot(tmp_path):
+    m = two_rooms(tmp_path)
+    out = _cli("run", "--map", m, "--robots", "2", "--start", "3,3", "--start", "12,3,90", "--max-sim-s", "1",
+               "--json", "--quiet")
+    assert out.returncode == 0, out.stderr
+    poses = json.loads(out.stdout)["start_poses"]
+    assert poses[0][:2] == [3.0, 3.0] and poses[1] == [12.0, 3.0, round(math.pi / 2, 4)]
+    out = _cli("run", "--map", m, "--start", "3", "--quiet")
+    assert out.returncode == 2 and "expected X,Y or X,Y,YAW_DEG" in out.stderr
+    out = _cli("run", "--map", m, "--robots", "3", "--start", "3,3", "--start", "12,3", "--quiet")
+    assert out.returncode == 2 and "one per robot (3), got 2" in out.stderr

@@ -79,12 +79,17 @@ def test_map_is_a_function_of_the_record_set(recs, rnd, data):
     assert sa == sb and np.array_equal(da, db)
 
 
-@SETTINGS
-@given(records, st.data())
-def test_graph_costs_match_networkx(recs, data):
+def map_of(recs) -> TopoMap:
     t = TopoMap(1.0, 2.5)
     for r in recs:
         t.add(r)
+    return t
+
+
+@SETTINGS
+@given(records, st.data())
+def test_graph_costs_match_networkx(recs, data):
+    t = map_of(recs)
     xy = t.positions()
     g = nx.Graph()
     g.add_nodes_from(range(len(xy)))
@@ -99,6 +104,20 @@ def test_graph_costs_match_networkx(recs, data):
             assert t.path(parent, v)[0] == src_found
         else:
             assert math.isinf(dist[v])
+
+
+@SETTINGS
+@given(records, st.data())
+def test_costs_to_many_points_are_cost_to_each_bit_for_bit(recs, data):
+    t = map_of(recs)
+    xy = t.positions()
+    src = data.draw(st.integers(0, len(xy) - 1))
+    _, dist, _ = t.costs_from(*xy[src])
+    points = data.draw(st.lists(st.tuples(st.floats(-10, 10), st.floats(-10, 10)), max_size=12))
+    xs, ys = [p[0] for p in points], [p[1] for p in points]
+    assert t.costs_to(dist, xs, ys).tolist() == [t.cost_to(dist, x, y)[0] for x, y in points]
+    nowhere = np.full(len(xy), np.inf)
+    assert t.costs_to(nowhere, xs, ys).tolist() == [math.inf] * len(points)
 
 
 def test_algorithm_1_merges_close_records_and_falls_back_when_disconnected():

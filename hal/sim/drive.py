@@ -1,8 +1,6 @@
 """Simulated differential-drive base: the world moves the body with the last command."""
 from __future__ import annotations
 
-import math
-
 from hal.samples import DriveLimits
 from world_sim.world import World
 
@@ -20,10 +18,5 @@ class SimDriveBase:
         return self._limits
 
     def command(self, v_mps: float, omega_radps: float) -> None:
-        for name, value in (("v_mps", v_mps), ("omega_radps", omega_radps)):
-            if not math.isfinite(value):
-                raise ValueError(f"SimDriveBase.command (robot {self._index}): {name} must be finite, got {value!r}")
-        lim = self._limits
-        v = min(max(float(v_mps), -lim.max_v_mps), lim.max_v_mps)
-        w = min(max(float(omega_radps), -lim.max_omega_radps), lim.max_omega_radps)
+        v, w = self._limits.clip(v_mps, omega_radps, f"SimDriveBase.command (robot {self._index})")
         self._world.set_command(self._index, v, w)
