@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 UNKNOWN = np.uint8(0)
 FREE = np.uint8(1)
@@ -33,7 +33,7 @@ def bearing_bin(dx, dy, bin0_rad, bin_rad, n):
     return b
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def polar_fill(logodds, row0, col0, res, px, py, bin0_rad, bin_rad, ranges_m, range_max_m,
                hit, miss, lmin, lmax, r_lo, r_hi, c_lo, c_hi):
     """Fold one scan, binned by bearing, into the log-odds window, inside rows [r_lo, r_hi)
@@ -62,7 +62,9 @@ def polar_fill(logodds, row0, col0, res, px, py, bin0_rad, bin_rad, ranges_m, ra
     i_hi = min(r_hi, int(math.floor((py + reach) / res)) - row0 + 1)
     j_lo = max(c_lo, int(math.floor((px - reach) / res)) - col0)
     j_hi = min(c_hi, int(math.floor((px + reach) / res)) - col0 + 1)
-    for i in range(max(i_lo, 0), min(i_hi, rows)):
+    # Rows in parallel: each cell's update depends on that cell alone, so the result is
+    # the same whatever the thread count.
+    for i in prange(max(i_lo, 0), min(i_hi, rows)):
         cy = (row0 + i + 0.5) * res - py
         for j in range(max(j_lo, 0), min(j_hi, cols)):
             if logodds[i, j] <= lmin:
@@ -153,7 +155,7 @@ def chamfer_distance(blocked):
     return d
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def chamfer_distances(state):
     """(distance to the nearest OCCUPIED cell, distance to the nearest cell that is not
     FREE), in cells; each as chamfer_distance would give it."""
@@ -165,8 +167,8 @@ def chamfer_distances(state):
             v = state[i, j]
             d_occ[i, j] = 0.0 if v == OCCUPIED else np.inf
             d_blk[i, j] = 0.0 if v != FREE else np.inf
-    _chamfer_passes(d_occ)
-    _chamfer_passes(d_blk)
+    for k in prange(2):        # the two fields are independent: one per thread
+        _chamfer_passes(d_occ if k == 0 else d_blk)
     return d_occ, d_blk
 
 
@@ -368,7 +370,7 @@ def ray_offsets(n_rays, steps):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells):
     """For each candidate cell, the number of UNKNOWN cells observable from it within
     max_range_cells (eq. 3's observable(nu, xi) by ray casting in the local map).
@@ -384,7 +386,7 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells):
     dtheta = 2.0 * math.pi / n_rays
     steps = int(max_range_cells)
     off = ray_offsets(n_rays, steps)
-    for c in range(n):
+    for c in prange(n):        # candidates in parallel: each sums its own rays in order
         total = 0.0
         ci = cand_i[c]
         cj = cand_j[c]
@@ -403,7 +405,7 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def mark_visible(state, src_i, src_j, n_rays, max_range_cells, out):
     """Set out[i, j] for every cell a ray from one of the source cells reaches within
     max_range_cells: the view of a sensor there, as far as this map can tell. Rays march
@@ -412,7 +414,8 @@ def mark_visible(state, src_i, src_j, n_rays, max_range_cells, out):
     rows, cols = state.shape
     steps = int(max_range_cells)
     off = ray_offsets(n_rays, steps)
-    for c in range(src_i.shape[0]):
+    # Sources in parallel: threads only ever store True, so the union is the same.
+    for c in prange(src_i.shape[0]):
         ci = src_i[c]
         cj = src_j[c]
         for k in range(n_rays):

@@ -8,6 +8,8 @@ import csv
 import hashlib
 import json
 import math
+import multiprocessing
+import os
 import statistics
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
@@ -141,6 +143,14 @@ def load_partial(out: Path) -> list[dict]:
     return done
 
 
+def _share_cores(threads: int) -> None:
+    """Pool worker start-up: the firmware's parallel kernels get this worker's share of the
+    cores, so that the workers do not crowd each other's threads off them. Thread counts do
+    not change results (the kernels' iterations write disjoint outputs)."""
+    import numba
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+
+
 def run_local(trials: list[MissionConfig], jobs: int, on_done: Callable[[dict], None],
               overrides: Overrides = ()) -> list[dict]:
     results: list[dict | None] = [None] * len(trials)
@@ -149,7 +159,11 @@ def run_local(trials: list[MissionConfig], jobs: int, on_done: Callable[[dict], 
             results[k] = run_trial(cfg, overrides)
             on_done(results[k])
         return results  # type: ignore[return-value]
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
+    threads = max(1, (os.cpu_count() or 1) // jobs)
+    # Spawned, not forked: a process that has run a parallel kernel holds a thread pool
+    # (OpenMP on Linux) that does not survive fork(), and the child would abort.
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=_share_cores, initargs=(threads,)) as pool:
         futures = {pool.submit(run_trial, cfg, overrides): k for k, cfg in enumerate(trials)}
         for f in as_completed(futures):
             results[futures[f]] = f.result()

@@ -1,6 +1,7 @@
 """The numba kernels equal their plain references on generated inputs."""
 import math
 
+import numba
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
@@ -171,3 +172,38 @@ def test_paired_chamfer_distances_equal_the_single_ones(state):
     d_occ, d_blk = kernels.chamfer_distances(state)
     np.testing.assert_array_equal(d_occ, kernels.chamfer_distance(state == kernels.OCCUPIED))
     np.testing.assert_array_equal(d_blk, kernels.chamfer_distance(state != kernels.FREE))
+
+
+def _with_threads(n, fn):
+    previous = numba.get_num_threads()
+    numba.set_num_threads(n)
+    try:
+        return fn()
+    finally:
+        numba.set_num_threads(previous)
+
+
+@settings(max_examples=15, deadline=None)
+@given(scans(), grids(values=(0, 1, 2)), st.data())
+def test_parallel_kernels_give_the_same_bits_on_one_thread_and_on_all(scan, state, data):
+    """polar_fill, chamfer_distances, observable_unknown and mark_visible run their
+    iterations in parallel; a robot computer with another core count must still drive the
+    same mission, so one thread and all threads must agree exactly."""
+    logodds, row0, col0, res, px, py, bin0, binw, ranges, range_max, region = scan
+    rows, cols = state.shape
+    k = data.draw(st.integers(0, 6))
+    ci = np.array(data.draw(st.lists(st.integers(0, rows - 1), min_size=k, max_size=k)), np.int64)
+    cj = np.array(data.draw(st.lists(st.integers(0, cols - 1), min_size=k, max_size=k)), np.int64)
+    rays = data.draw(st.integers(4, 200))
+    reach = data.draw(st.floats(0.0, 40.0))
+
+    def run():
+        filled = logodds.copy()
+        kernels.polar_fill(filled, row0, col0, res, px, py, bin0, binw, ranges, range_max,
+                           0.85, -0.4, -4.0, 4.0, *region)
+        seen = np.zeros(state.shape, bool)
+        kernels.mark_visible(state, ci, cj, rays, reach, seen)
+        return (filled, *kernels.chamfer_distances(state), kernels.observable_unknown(state, ci, cj, rays, reach), seen)
+
+    for one, every in zip(_with_threads(1, run), _with_threads(numba.config.NUMBA_NUM_THREADS, run)):
+        np.testing.assert_array_equal(one, every)
