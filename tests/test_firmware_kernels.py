@@ -120,13 +120,18 @@ def test_dijkstra_settled_in_parts_equals_the_full_search(free, data):
         np.testing.assert_array_equal(parent[settled], full_parent[settled])
 
 
+def _draw_cells(data, shape, k):
+    """k cells of a grid of this shape, as (rows, cols) index arrays."""
+    rows, cols = shape
+    ci = np.array(data.draw(st.lists(st.integers(0, rows - 1), min_size=k, max_size=k)), np.int64)
+    cj = np.array(data.draw(st.lists(st.integers(0, cols - 1), min_size=k, max_size=k)), np.int64)
+    return ci, cj
+
+
 @SETTINGS
 @given(grids(values=(0, 1, 2)), st.data())
 def test_observable_unknown_matches_reference(state, data):
-    rows, cols = state.shape
-    k = data.draw(st.integers(1, 5))
-    ci = np.array(data.draw(st.lists(st.integers(0, rows - 1), min_size=k, max_size=k)), np.int64)
-    cj = np.array(data.draw(st.lists(st.integers(0, cols - 1), min_size=k, max_size=k)), np.int64)
+    ci, cj = _draw_cells(data, state.shape, data.draw(st.integers(1, 5)))
     rays = data.draw(st.integers(4, 64))
     reach = data.draw(st.floats(1.0, 40.0))
     np.testing.assert_allclose(kernels.observable_unknown(state, ci, cj, rays, reach),
@@ -136,10 +141,7 @@ def test_observable_unknown_matches_reference(state, data):
 @SETTINGS
 @given(grids(values=(0, 1, 2)), st.data())
 def test_mark_visible_matches_reference(state, data):
-    rows, cols = state.shape
-    k = data.draw(st.integers(0, 5))
-    si = np.array(data.draw(st.lists(st.integers(0, rows - 1), min_size=k, max_size=k)), np.int64)
-    sj = np.array(data.draw(st.lists(st.integers(0, cols - 1), min_size=k, max_size=k)), np.int64)
+    si, sj = _draw_cells(data, state.shape, data.draw(st.integers(0, 5)))
     rays = data.draw(st.integers(4, 400))
     reach = data.draw(st.floats(0.0, 40.0))
     out = np.zeros(state.shape, bool)
@@ -190,10 +192,7 @@ def test_parallel_kernels_give_the_same_bits_on_one_thread_and_on_all(scan, stat
     iterations in parallel; a robot computer with another core count must still drive the
     same mission, so one thread and all threads must agree exactly."""
     logodds, row0, col0, res, px, py, bin0, binw, ranges, range_max, region = scan
-    rows, cols = state.shape
-    k = data.draw(st.integers(0, 6))
-    ci = np.array(data.draw(st.lists(st.integers(0, rows - 1), min_size=k, max_size=k)), np.int64)
-    cj = np.array(data.draw(st.lists(st.integers(0, cols - 1), min_size=k, max_size=k)), np.int64)
+    ci, cj = _draw_cells(data, state.shape, data.draw(st.integers(0, 6)))
     rays = data.draw(st.integers(4, 200))
     reach = data.draw(st.floats(0.0, 40.0))
 
