@@ -15,8 +15,9 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
+# The main job on a built-in default: a team of five on the built-in cave over the EU band.
 demo: $(STAMP)
-	$(BIN)/lorascout run
+	$(BIN)/lorascout run --map cave:1:60x60 --robots 5 --strategy minpos --radio eu868-g3 --out out/demo
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
