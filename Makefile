@@ -29,7 +29,7 @@ MAPS := ../shared/maps/maze_a.yaml ../shared/maps/maze_b.yaml ../shared/maps/int
 
 # Issue 4's acceptance grid and the README's team tables: 5 robots on the four maps, every
 # strategy with 10 seeds on the ideal link, and Greedy and MinPos again on the EU 10 % band
-# (about 3.5 hours on 2 cores; it resumes, keeping the trials that ran the same code).
+# (about 3.2 hours on 2 cores; it resumes, keeping the trials that ran the same code).
 # out/sweep keeps every trial with its paths; what the README shows is copied to docs/sweep.
 SWEEP_OUT := out/sweep
 sweep: $(STAMP)
