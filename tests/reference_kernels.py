@@ -70,10 +70,12 @@ def chamfer_distance(blocked):
 
 
 def dijkstra_grid(traversable, cost, si, sj):
+    """(cost, parent as flat index): heapq pops equal costs by (row, col), the kernel's order."""
     rows, cols = traversable.shape
     d = np.full((rows, cols), np.inf)
+    parent = np.full((rows, cols), -1, np.int64)
     if not traversable[si, sj]:
-        return d
+        return d, parent
     d[si, sj] = 0.0
     heap = [(0.0, si, sj)]
     while heap:
@@ -92,8 +94,9 @@ def dijkstra_grid(traversable, cost, si, sj):
                 nd = dc + (math.sqrt(2) if di and dj else 1.0) * 0.5 * (cost[i, j] + cost[ni, nj])
                 if nd < d[ni, nj]:
                     d[ni, nj] = nd
+                    parent[ni, nj] = i * cols + j
                     heapq.heappush(heap, (nd, ni, nj))
-    return d
+    return d, parent
 
 
 def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells, unknown=0, occupied=2):

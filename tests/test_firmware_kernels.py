@@ -82,7 +82,10 @@ def test_dijkstra_matches_reference(free, data):
     rows, cols = free.shape
     trav, cost, si, sj = _search_case(free, data)
     dist, parent = kernels.dijkstra_grid(trav, cost, si, sj)
-    np.testing.assert_allclose(dist, ref.dijkstra_grid(trav, cost, si, sj), rtol=1e-9)
+    ref_dist, ref_parent = ref.dijkstra_grid(trav, cost, si, sj)
+    # Exactly equal: the same cells settle in the same order, so ties pick the same parents.
+    np.testing.assert_array_equal(dist, ref_dist)
+    np.testing.assert_array_equal(parent, ref_parent)
     # Every reached cell's parent chain leads back to the start.
     for i, j in zip(*np.nonzero(np.isfinite(dist))):
         steps = 0
@@ -91,6 +94,18 @@ def test_dijkstra_matches_reference(free, data):
             steps += 1
             assert steps <= rows * cols
         assert (i, j) == (si, sj)
+
+
+def test_dijkstra_breaks_ties_like_the_reference():
+    """Uniform costs make many equal path costs; the parents show the tie order."""
+    rng = np.random.default_rng(7)
+    trav = rng.random((60, 70)) > 0.25
+    trav[30, 35] = True
+    cost = np.ones(trav.shape)
+    dist, parent = kernels.dijkstra_grid(trav, cost, 30, 35)
+    ref_dist, ref_parent = ref.dijkstra_grid(trav, cost, 30, 35)
+    np.testing.assert_array_equal(dist, ref_dist)
+    np.testing.assert_array_equal(parent, ref_parent)
 
 
 @SETTINGS
