@@ -407,7 +407,7 @@ def save(out: Path, spec: SweepSpec, results: list[dict]) -> dict:
     from host_tools.plots import plot_sweep_overview, plot_sweep_p_max, plot_sweep_paths
     from world_sim.map_spec import resolve_map
 
-    rows, labels, longest = [], [], []
+    rows, longest = [], []
     for m in spec.maps:
         occ, _, label = resolve_map(m)          # once per map: a cave is generated anew each time
         firsts, by_strategy = [], {}
@@ -418,8 +418,7 @@ def save(out: Path, spec: SweepSpec, results: list[dict]) -> dict:
             by_strategy[s] = [max(r["path_length_m"]) for r in trials]
             plot_sweep_paths(occ, label, first, out / f"paths_{Path(first['map']).stem.replace(':', '_')}_{s}.png")
         rows.append((occ, label, firsts))
-        labels.append(label)
         longest.append(by_strategy)
     plot_sweep_overview(rows, out / "paths_overview.png")
-    plot_sweep_p_max(labels, list(spec.strategies), longest, spec.radio, out / "p_max_by_trial.png")
+    plot_sweep_p_max([label for _, label, _ in rows], list(spec.strategies), longest, spec.radio, out / "p_max_by_trial.png")
     return t
