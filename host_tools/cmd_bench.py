@@ -78,8 +78,7 @@ def run_bench(name: str, sim_s: float | None, warmup_sim_s: float, quiet: bool) 
         "tick": _stats_ms(profiler.samples_s["tick"]),
         "tasks": tasks,
         "peak_rss_mb": round(peak_rss_mb, 1),
-        "local_map_bytes": int(agent.local_map.logodds.nbytes),
-        "paged_out_bytes": int(agent.local_map.pager.nbytes),
+        **agent.memory_bytes(),
         "coverage": round(result.coverage, 4),
     }
 

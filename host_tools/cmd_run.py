@@ -7,11 +7,11 @@ import math
 import sys
 from pathlib import Path
 
-from firmware.team import STRATEGIES
 from hal.lora import PROFILES
 from host_tools.mission import MissionConfig, run_mission
 from host_tools.overrides import describe, parse_overrides, params_with
 from host_tools.progress import progress_bar
+from host_tools.scheme_option import add_scheme_option
 
 DEFAULT_MAP = "cave:1"
 
@@ -23,8 +23,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="mission seed: same seed, same result (default %(default)s)")
     p.add_argument("--max-sim-s", type=float, default=14400.0, help="simulated time limit in seconds (default %(default)s)")
     p.add_argument("--radio", default="ideal-100Bps", choices=sorted(PROFILES), help="radio profile (default %(default)s)")
-    p.add_argument("--strategy", default="greedy", choices=list(STRATEGIES),
-                   help="coordination strategy (default %(default)s)")
+    add_scheme_option(p, default="greedy")
     p.add_argument("--serial-radio", action="store_true",
                    help="drive every robot's radio through a virtual RN2483 modem on a pseudo-terminal")
     p.add_argument("--capture", type=Path, default=None, metavar="FILE",

@@ -8,17 +8,17 @@ import os
 import sys
 from pathlib import Path
 
-from firmware.team import STRATEGIES
 from hal.lora import PROFILES
 from host_tools.overrides import parse_overrides
 from host_tools.progress import progress_bar
+from host_tools.scheme_option import add_schemes_option
 from host_tools.sweep import (PARTIAL_NAME, WRITTEN, SweepSpec, code_fingerprint, load_partial, markdown, run_local,
                                run_ray, save, trial_key)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--maps", nargs="+", required=True, help="map specs (PATH.yaml, cave:SEED, tunnel:SEED)")
-    p.add_argument("--strategies", nargs="+", default=list(STRATEGIES), choices=list(STRATEGIES))
+    add_schemes_option(p)
     p.add_argument("--robots", type=int, default=5)
     p.add_argument("--seeds", type=int, default=10, help="trials per map and strategy (seeds 0..N-1)")
     p.add_argument("--first-seed", type=int, default=0)

@@ -19,7 +19,7 @@ import numpy as np
 from firmware.agent import ExplorerAgent
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import TaskProfiler
-from firmware.team import strategy as strategy_named
+from firmware.schemes import build as build_scheme
 from hal.lora import profile as radio_profile
 from hal.sim.clock import SimClock
 from hal.sim.factory import build_sim_hal
@@ -91,17 +91,9 @@ class MissionResult:
         as unreachable or stalled), waypoints cancelled by teammates' presence and shared-map
         targets found stale in its own map (both counted per planning cycle: a place counts
         again each cycle it is found again), and obstacles it bumped into."""
-        ex = [a.explorer for a in self.agents]
-        return {
-            "targets_reached": [e.reached for e in ex],
-            "targets_seen_on_way": [e.seen_on_way for e in ex],
-            "targets_unreachable": [e.dropped_unreachable for e in ex],
-            "targets_stalled": [e.dropped_stalled for e in ex],
-            "waypoints_dropped_by_presence": [e.dropped_by_presence for e in ex],
-            "waypoints_revived": [e.revived for e in ex],
-            "team_targets_stale": [e.stale_team_targets for e in ex],
-            "bumps": [a.bumps for a in self.agents],
-        }
+        per_robot = [a.stats() for a in self.agents]
+        keys = sorted({k for s in per_robot for k in s})
+        return {k: [s.get(k, 0) for s in per_robot] for k in keys}
 
     def to_json(self) -> dict:
         return {
@@ -200,7 +192,6 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     reachable = _reachable_from(occ, poses, robot_radius_m=world_params.robot_radius_m)
     reachable_raw = _reachable_from(occ, poses)
     profile = radio_profile(cfg.radio)
-    strategy = strategy_named(cfg.strategy)
     channel = Channel(profile, cfg.seed, occupancy=occ)
     air_frames: list[AirFrame] = []
     channel.add_sink(air_frames.append)
@@ -220,10 +211,11 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         radios = [SimRadioModem(channel, i, clock) for i in range(cfg.robots)]
     agents = []
     for i in range(cfg.robots):
+        scheme = build_scheme(cfg.strategy)
         hal = build_sim_hal(world, i, radio=radios[i])
-        if strategy.shares_dense_map:
+        if "mesh" in scheme.needs_of():
             hal = dataclasses.replace(hal, mesh=mesh.endpoint(i))
-        agent = ExplorerAgent(hal, params, rates, strategy, profile, team_size=cfg.robots)
+        agent = ExplorerAgent(hal, params, rates, scheme, profile, team_size=cfg.robots)
         agent.setup()
         agents.append(agent)
     try:

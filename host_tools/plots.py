@@ -42,18 +42,23 @@ def plot_mission(result, path: Path) -> None:
     ax.legend(loc="upper right", fontsize=8)
     ax = axes[1]
     _background(ax, occ)
+    title = "what the robots' scheme shares: nothing"
     for i, agent in enumerate(result.agents):
         c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
-        xy = agent.topo.positions()
-        segments = xy[agent.topo.edges] if len(agent.topo.edges) else np.zeros((0, 2, 2))
+        geometry = agent.scheme.drawables()
+        if not geometry:
+            continue
+        title = geometry.get("title", title)
+        xy = np.asarray(geometry.get("points", np.zeros((0, 2)))).reshape(-1, 2)
+        segments = np.asarray(geometry.get("segments", np.zeros((0, 2, 2)))).reshape(-1, 2, 2)
         ax.add_collection(LineCollection(segments, colors=[c], linewidths=0.5, alpha=0.6))
-        e = agent.topo.e_inf_codes()
         if len(xy):
-            ax.scatter(xy[:, 0], xy[:, 1], s=4, color=c, label=f"robot {i}: {len(xy)} vertices")
-            open_ = e > 0
-            ax.scatter(xy[open_, 0], xy[open_, 1], s=14, facecolors="none", edgecolors="red", lw=0.5)
-    ax.set_title("topological map (red rings: vertices with obtainable information)", fontsize=10)
-    ax.legend(loc="upper right", fontsize=8)
+            ax.scatter(xy[:, 0], xy[:, 1], s=4, color=c, label=f"robot {i}: {len(xy)} {geometry.get('what', 'points')}")
+            marked = np.asarray(geometry.get("highlight", np.zeros(len(xy), bool)), bool)
+            ax.scatter(xy[marked, 0], xy[marked, 1], s=14, facecolors="none", edgecolors="red", lw=0.5)
+    ax.set_title(title, fontsize=10)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper right", fontsize=8)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

@@ -20,9 +20,9 @@ import numpy as np
 
 from firmware.comms.frame import frame_size_bytes
 from firmware.comms.schema import record_type
-from firmware.local_map import keyframe_bytes
+from firmware.schemes.dense_baseline.keyframes import keyframe_bytes
 from firmware.params import ExplorationParams
-from firmware.team import strategy as strategy_named
+from firmware.schemes import build as build_scheme
 from host_tools.mission import MissionConfig, run_mission
 from host_tools.overrides import Overrides, describe, params_with
 
@@ -48,8 +48,7 @@ class SweepSpec:
     overrides: Overrides = ()
 
     def lora_strategies(self) -> tuple[str, ...]:
-        return tuple(s for s in self.strategies
-                     if strategy_named(s).shares_topology and not strategy_named(s).shares_dense_map)
+        return tuple(s for s in self.strategies if build_scheme(s).needs_of() == {"radio"})
 
     def trials(self) -> list[MissionConfig]:
         grid = [(self.radio, s) for s in self.strategies]
@@ -199,10 +198,11 @@ def p_max(trials: Iterable[dict]) -> float:
 def packet_bytes(strategy: str, params: ExplorationParams) -> int:
     """Bytes of one map update as the scheme sends it: a 12-byte topological record, or, for
     the dense baselines, one keyframe scan on the mesh link."""
-    if strategy_named(strategy).shares_dense_map:
+    scheme = build_scheme(strategy)
+    if "mesh" in scheme.needs_of():
         return keyframe_bytes(params.keyframe_bins)
-    if strategy_named(strategy).shares_topology:
-        return record_type("topo").size_bytes
+    if scheme.records:
+        return max(record_type(r).size_bytes for r in scheme.records)
     return 0
 
 

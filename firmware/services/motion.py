@@ -1,5 +1,6 @@
-"""Waypoint-following controller: pure pursuit on the planned path, turning in place when
-the next point is far off the heading (the paper steers with forward and angular velocity)."""
+"""Motion: a waypoint-following controller (pure pursuit on the planned path, turning in
+place when the next point is far off the heading; the paper steers with forward and angular
+velocity), and stall detection."""
 from __future__ import annotations
 
 import math
@@ -65,3 +66,30 @@ class PathFollower:
 
     def remaining(self) -> np.ndarray:
         return self.path_xy[self._next:]
+
+
+class StallDetector:
+    """Commanded forward for stuck_after_s while the wheels report no motion: something
+    the map does not show is in the way."""
+
+    def __init__(self, params: ExplorationParams, control_hz: float) -> None:
+        self.p = params
+        self.control_hz = control_hz
+        self._stuck_ticks = 0
+        self._last_cmd_v = 0.0
+
+    def commanded(self, v_mps: float) -> None:
+        self._last_cmd_v = v_mps
+
+    def stuck(self, measured_v_mps: float) -> bool:
+        """Called once per control tick; True once per stall."""
+        if self.p.stuck_after_s <= 0:
+            return False
+        if self._last_cmd_v > 0.1 and abs(measured_v_mps) < 0.02:
+            self._stuck_ticks += 1
+        else:
+            self._stuck_ticks = 0
+        if self._stuck_ticks >= self.p.stuck_after_s * self.control_hz:
+            self._stuck_ticks = 0
+            return True
+        return False

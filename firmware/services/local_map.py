@@ -3,13 +3,13 @@
 Planning works on the window only, so its cost is fixed by the window size, whatever the
 area explored. What leaves the window is paged out to `TilePager` and paged back in when
 the robot returns: a place comes back exactly as it was left, instead of looking unexplored
-again. Scans binned for the dense baselines' mesh link (`BinnedScan`, `encode_keyframe`)
-live here too, because folding one in is a window operation.
+again. Scans binned to fixed world bearings (`BinnedScan`) live here too: folding one in
+(a dense baseline's keyframe) is a window operation, and a stalled robot reads its last scan
+so.
 """
 from __future__ import annotations
 
 import math
-import struct
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -119,36 +119,6 @@ def something_within(scan: BinnedScan, yaw_rad: float, reach_m: float) -> bool:
     return bool(((r > 0.0) & (r <= reach_m) & (np.cos(bearing - yaw_rad) > 0.0)).any())
 
 
-# A keyframe on the mesh link: sender u8, x_cm i32, y_cm i32, bearing of the first bin u16
-# (in 1/65536 of a turn), range_max_cm u16, bins u16, then one u16 range in cm per bin
-# (little-endian): 15 + 2 * bins bytes.
-_KEYFRAME_HEAD = struct.Struct("<BiiHHH")
-_TURN_UNITS = 65536
-
-
-def keyframe_bytes(bins: int) -> int:
-    return _KEYFRAME_HEAD.size + 2 * bins
-
-
-def encode_keyframe(sender_id: int, scan: BinnedScan) -> bytes:
-    ranges_cm = np.clip(np.round(scan.ranges_m * 100.0), 0, 65535).astype("<u2")
-    bearing0 = round(scan.bearing0_rad % (2 * math.pi) / (2 * math.pi) * _TURN_UNITS) % _TURN_UNITS
-    return _KEYFRAME_HEAD.pack(sender_id, round(scan.x_m * 100), round(scan.y_m * 100), bearing0,
-                               min(65535, round(scan.range_max_m * 100)), len(ranges_cm)) + ranges_cm.tobytes()
-
-
-def decode_keyframe(data: bytes) -> tuple[int, BinnedScan] | None:
-    """(sender, scan), or None if malformed."""
-    if len(data) < _KEYFRAME_HEAD.size:
-        return None
-    sender, x_cm, y_cm, bearing0, range_max_cm, bins = _KEYFRAME_HEAD.unpack_from(data)
-    if bins == 0 or len(data) != keyframe_bytes(bins) or range_max_cm == 0:
-        return None
-    ranges = np.frombuffer(data, "<u2", bins, _KEYFRAME_HEAD.size).astype(np.float64) / 100.0
-    return sender, BinnedScan(x_cm / 100.0, y_cm / 100.0, bearing0 * (2 * math.pi / _TURN_UNITS),
-                              ranges, range_max_cm / 100.0)
-
-
 @dataclass
 class MapLayers:
     """What planning needs, derived from the log-odds once per planning cycle."""
@@ -200,6 +170,15 @@ class LocalMap:
     def center_of(self, i: int, j: int) -> tuple[float, float]:
         res = self.p.resolution_m
         return (self.col0 + j + 0.5) * res, (self.row0 + i + 0.5) * res
+
+    def in_window(self, i: int, j: int) -> bool:
+        return 0 <= i < self.n and 0 <= j < self.n
+
+    def cells_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Window cells (rows of i, j) of world points (rows of x, y), and which of them
+        are inside the window."""
+        ij = np.array([self.cell_of(x, y) for x, y in xy], np.int64).reshape(-1, 2)
+        return ij, (ij >= 0).all(axis=1) & (ij < self.n).all(axis=1)
 
     def contains(self, x_m: float, y_m: float, margin_cells: int = 0) -> bool:
         i, j = self.cell_of(x_m, y_m)

@@ -1,0 +1,64 @@
+"""The coordination schemes, found by name (python-can's backend registry pattern): a name
+maps to (module, class), and only the scheme asked for is imported.
+
+Adding a scheme: write its package under firmware/schemes/ (a firmware.schemes.base.Scheme
+subclass) and add one line to SCHEMES.
+
+A scheme is asked for as NAME or NAME:VARIANT (`bayer-faigl:minpos`); the strategy names of
+the first version (`minpos`, `greedy-full`, ...) stay valid as aliases.
+"""
+from __future__ import annotations
+
+import importlib
+
+from firmware.schemes.base import Scheme
+
+SCHEMES: dict[str, tuple[str, str]] = {
+    "bayer-faigl": ("firmware.schemes.bayer_faigl", "BayerFaigl"),
+    "dense": ("firmware.schemes.dense_baseline", "DenseBaseline"),
+    "independent": ("firmware.schemes.independent", "Independent"),
+}
+
+ALIASES: dict[str, str] = {
+    "greedy": "bayer-faigl:greedy",
+    "minpos": "bayer-faigl:minpos",
+    "greedy-full": "dense:greedy",
+    "minpos-full": "dense:minpos",
+}
+
+
+def scheme_class(name: str) -> type[Scheme]:
+    try:
+        module, cls = SCHEMES[name]
+    except KeyError:
+        raise ValueError(f"unknown scheme {name!r}; known: {', '.join(SCHEMES)} "
+                         f"(or one of {', '.join(ALIASES)})") from None
+    return getattr(importlib.import_module(module), cls)
+
+
+def resolve(spec: str) -> tuple[str, str]:
+    """(scheme name, variant) of NAME, NAME:VARIANT or an alias; ValueError naming what is
+    unknown. An empty variant means the scheme's default."""
+    name, _, variant = ALIASES.get(spec, spec).partition(":")
+    cls = scheme_class(name)
+    variant = variant or cls.default_variant
+    if variant not in cls.variants:
+        raise ValueError(f"scheme {name!r} has no variant {variant!r}; "
+                         f"known: {', '.join(v for v in cls.variants if v) or 'none'}")
+    return name, variant
+
+
+def build(spec: str) -> Scheme:
+    name, variant = resolve(spec)
+    return scheme_class(name)(variant)
+
+
+def catalogue() -> list[tuple[str, str]]:
+    """(spec, what it does) for every scheme and variant, and every alias, for --help."""
+    out = []
+    for name in SCHEMES:
+        cls = scheme_class(name)
+        for variant, doc in cls.variants.items():
+            out.append((f"{name}:{variant}" if variant else name, doc))
+    out.extend((alias, f"= {spec}") for alias, spec in ALIASES.items())
+    return out

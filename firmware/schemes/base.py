@@ -1,0 +1,157 @@
+"""The interface every coordination scheme implements, and what the firmware hands it.
+
+A scheme declares its name, its variants, the record types it owns (its dialect) and what
+it needs from the HAL. The agent gives it the shared services (`Services`) once, then tells
+it what happens: records received from its dialect, travel, the end of a target, the end of
+a planning cycle. It may add periodic tasks of its own. In each planning cycle it owns one
+stage, in two steps, run by the shared planner (firmware.services.planner):
+
+    filter_waypoints(view)   which of this robot's waypoints it still wants (before this
+                             cycle's target outcome is decided)
+    rank(view, own)          own candidates in, the ranked candidates it wants out: filter,
+                             add team targets, cost beyond the local window, rank
+
+Choosing among the ranked candidates, routing and strike keeping stay in the shared
+services. A scheme never touches another scheme's state, and host tools ask it for its
+statistics (`stats`) and drawable geometry (`drawables`) instead of reaching in.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from firmware.params import ExplorationParams, TaskRates
+from firmware.scheduler import Task
+from firmware.services.local_map import BinnedScan, LocalMap
+from firmware.services.roster import Roster
+from firmware.services.targets import Candidate, Target
+from firmware.services.topo_map import TopoMap
+from firmware.services.waypoints import WaypointSet
+from hal.interfaces import MeshLink
+from hal.samples import OdometrySample
+
+# What a scheme may need from the robot (Scheme.needs):
+NEEDS = {
+    "radio": "the LoRa modem and a radio profile (the link layer)",
+    "relay": "the link layer's managed flooding (multi-hop)",
+    "uwb": "a UWB ranger",
+    "aoa": "a WiFi angle-of-arrival sensor",
+    "mesh": "a high-bandwidth mesh link (dense-map baselines)",
+    "shared_frame": "odometry in one frame shared by the whole team",
+}
+
+# Link-layer priorities for the records schemes send: higher goes first.
+PRIORITY_INFO = 1
+PRIORITY_MOTION = 2
+PRIORITY_STATUS = 3
+
+Send = Callable[[str, Mapping[str, int], int], None]
+
+
+@dataclass(frozen=True)
+class Services:
+    """The shared services a scheme works with; the agent owns them."""
+
+    robot_id: int
+    params: ExplorationParams
+    rates: TaskRates
+    local_map: LocalMap
+    waypoints: WaypointSet
+    topo: TopoMap                   # the places visited; routes beyond the local window
+    roster: Roster
+    send: Send | None               # (record type, values, priority) onto the air; None without a link
+    mesh: MeshLink | None
+    last_scan_binned: Callable[[], BinnedScan]   # the newest scan in world-frame bins
+    has_planned: Callable[[], bool]              # a planning cycle has run (waypoints exist)
+
+
+@dataclass
+class PlanningView:
+    """One planning cycle as the scheme's stage sees it."""
+
+    x_m: float
+    y_m: float
+    now_us: int
+    sight: np.ndarray                       # the local map's sight layer (firmware.kernels states)
+    target: Target | None                   # the robot's current target, if any
+    blocked_edges: frozenset                # topological edges this robot found crossing walls
+    local_costs: Callable[[list[Candidate]], tuple[np.ndarray, np.ndarray]]
+    graph_costs: Callable[[list[Candidate]], np.ndarray]
+
+
+class Scheme(ABC):
+    name: ClassVar[str]
+    doc: ClassVar[str]
+    variants: ClassVar[Mapping[str, str]] = {"": ""}   # variant -> what it does
+    default_variant: ClassVar[str] = ""
+    records: ClassVar[tuple[str, ...]] = ()            # record type names of its dialect
+    needs: ClassVar[frozenset[str]] = frozenset()
+
+    def __init__(self, variant: str = "") -> None:
+        variant = variant or self.default_variant
+        if variant not in self.variants:
+            raise ValueError(f"scheme {self.name!r} has no variant {variant!r}; "
+                             f"known: {', '.join(v for v in self.variants if v) or 'none'}")
+        self.variant = variant
+        self.s: Services | None = None
+
+    @property
+    def spec(self) -> str:
+        return f"{self.name}:{self.variant}" if self.variant else self.name
+
+    def needs_of(self) -> frozenset[str]:
+        """What this instance needs (a scheme composing another adds its needs)."""
+        return self.needs
+
+    def attach(self, services: Services) -> None:
+        """Called once at setup, before any other call."""
+        self.s = services
+
+    def tasks(self) -> list[Task]:
+        """Periodic tasks of the scheme's own, run after the core radio task."""
+        return []
+
+    def on_record(self, rtype: str, values: Mapping[str, int], now_us: int) -> None:
+        """A record of this scheme's dialect, received from a teammate."""
+
+    def on_travel(self, pose: OdometrySample, now_us: int) -> None:
+        """Every control tick while the robot explores, with its current pose."""
+
+    def on_target_outcome(self, target: Target, outcome: str) -> None:
+        """A target ended (firmware.services.targets: reached, seen_on_way, unreachable,
+        stalled)."""
+
+    def filter_waypoints(self, view: PlanningView) -> None:
+        """Drop from Services.waypoints what this scheme no longer wants this robot to
+        explore (e.g. what teammates have covered)."""
+
+    @abstractmethod
+    def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
+        """The candidates the robot should choose among, each with cost_m and rank set."""
+
+    def after_plan(self, pose: OdometrySample, now_us: int) -> None:
+        """After each planning cycle (before a finished robot reports done)."""
+
+    def stats(self) -> dict[str, int]:
+        """Counters for the mission report (stable keys)."""
+        return {}
+
+    def drawables(self) -> dict[str, Any]:
+        """Geometry for plots: any of
+        "points" (N x 2 m), "segments" (M x 2 x 2 m), "highlight" (bool per point),
+        "title" (what they are)."""
+        return {}
+
+
+def cost_by_window(view: PlanningView, candidates: list[Candidate]) -> None:
+    """Each candidate's cost: its grid path in the local map where it is reachable there,
+    else its cost along the topological graph (both set on the candidates)."""
+    cost_local, local = view.local_costs(candidates)
+    graph = view.graph_costs(candidates)
+    for c, ok, cl, cg in zip(candidates, local, cost_local, graph):
+        c.graph_cost_m = float(cg)
+        c.cost_m = float(cl) if ok else c.graph_cost_m

@@ -1,0 +1,3 @@
+from firmware.schemes.bayer_faigl.scheme import BayerFaigl
+
+__all__ = ["BayerFaigl"]

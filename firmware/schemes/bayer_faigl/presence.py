@@ -1,0 +1,164 @@
+"""Bayer & Faigl's presence rule (IV-A: drop a waypoint when another robot was within d_cam
+of it), made safe for real maps, and the breaker for the deadlock it can cause. See
+PresenceRule.drop_waypoints_seen_by_others and the README's "Notes and limits"."""
+from __future__ import annotations
+
+import numpy as np
+
+from firmware import kernels
+from firmware.schemes.base import Services
+from firmware.services.grid_paths import line_of_sight
+from firmware.services.targets import Target
+from firmware.services.waypoints import Waypoint
+
+
+class PresenceRule:
+    def __init__(self, services: Services) -> None:
+        self.s = services
+        self.dropped = 0       # waypoints dropped, counted per planning cycle
+        self.revived = 0       # waypoints taken back by revive_shared_frontiers
+        self._given_up: list[Waypoint] = []   # what the rule dropped, for the breaker
+
+    @property
+    def holds_given_up(self) -> bool:
+        return bool(self._given_up)
+
+    def drop_waypoints_seen_by_others(self, sight: np.ndarray, target: Target | None) -> list[Waypoint]:
+        """Bayer & Faigl: a waypoint is removed when another robot reported its presence
+        closer than d_cam. Taken literally that cancels what nobody looked at (robots leaving
+        a common staging area cancel each other's waypoints; a robot passing the door of a
+        room cancels the room), so a report only raises the question, and what the others
+        could have seen answers it:
+        - the report comes from a place this robot has not visited itself and, where the
+          local map holds both ends, no wall stands between it and the waypoint;
+        - the cells in line of sight within d_cam of every place others reported (as far as
+          our map can tell: our known walls block the view, unknown cells do not) are taken
+          as seen, and if the waypoint still has presence_keep_bit of information beyond
+          them, it stays.
+        - with presence_holds_target, waypoints within the cluster radius of the robot's own
+          current target stay: the cover counted changes as the window moves (it is cast from
+          the places inside it), and a robot giving way every time swung between two targets
+          for minutes (maze_b, MinPos, seed 5: 1014 m).
+        Whether the teammate still holds information at its place does not matter: what it
+        saw from there is seen, and what it has left is its own waypoint, shared as e_inf.
+        (Counting only places with e_inf 0 left robots re-exploring what teammates had seen
+        whenever those still had anything nearby: on maze_b, MinPos drove 1.3 times as far as
+        with dense maps over ten seeds.)
+        Returns the waypoints it dropped."""
+        if not len(self.s.topo) or not self.s.waypoints.items:
+            return []
+        items = self.s.waypoints.items
+        held = []   # the current target's, exempt
+        t = target
+        if t is not None and not t.from_team and self.s.params.presence_holds_target:
+            r2 = self.s.params.waypoint_cluster_radius_m ** 2
+            near_target = [(w.x_m - t.x_m) ** 2 + (w.y_m - t.y_m) ** 2 < r2 for w in items]
+            held = [w for w, near in zip(items, near_target) if near]
+            items = [w for w, near in zip(items, near_target) if not near]
+        keep, dropped = self._split_by_team_view(items, sight, self._places_of_others())
+        self.s.waypoints.items = held + keep
+        self.dropped += len(dropped)
+        return dropped
+
+    def remember_given_up(self, dropped: list[Waypoint], sight: np.ndarray) -> None:
+        """Keep the waypoints the presence rule dropped (one per cluster radius, the latest)
+        for revive_shared_frontiers, which may need them long after the robot left: forget
+        those that are banned, or that our own map now shows to hold too little."""
+        r2 = self.s.params.waypoint_cluster_radius_m ** 2
+        kept = [g for g in self._given_up if not self.s.waypoints.is_banned(g.x_m, g.y_m)
+                and all((g.x_m - w.x_m) ** 2 + (g.y_m - w.y_m) ** 2 >= r2 for w in dropped)]
+        self._given_up = kept + list(dropped)
+        ij, inside = self.s.local_map.cells_of(np.array([(g.x_m, g.y_m) for g in self._given_up]).reshape(-1, 2))
+        if inside.any():
+            cells = kernels.observable_unknown(sight, ij[inside, 0], ij[inside, 1], self.s.params.info_rays,
+                                               self.s.params.d_cam_m / self.s.params.resolution_m)
+            for k, c in zip(np.nonzero(inside)[0], cells):
+                self._given_up[k].e_bit = float(c) * self.s.params.entropy_per_cell_bit
+            self._given_up = [g for g in self._given_up if g.e_bit >= self.s.params.min_cluster_entropy_bit]
+
+    def revive_shared_frontiers(self, sight: np.ndarray) -> list[Waypoint]:
+        """The presence rule's deadlock breaker, for a robot left with no target at all and
+        no teammate still exploring (every one it heard of reported done).
+
+        Robots that pass close to each other (a staging area, a shared corridor) each drop
+        a frontier there on account of the others' places, and when every one of them does,
+        nobody explores what lies beyond: the cave:1:60x60 greedy mission of seed 4 ended at
+        51 % coverage so. A teammate's place within shared_view_m of one of our own places
+        saw about what we saw from there, and our map shows that this was not enough; so the
+        waypoints given up (remember_given_up) are judged again without those places. Only
+        the last robot does it: while a teammate explores, what it was left may still be its
+        next target, and robots with nothing to do driving back to check cost more than they
+        find (on seed 2 of the same cave, p_max went from 354 to 516 m).
+        Never a waypoint that a teammate stood within revive_clear_m of: it saw what the
+        waypoint promised. In the cave's deadlock the nearest teammate place was 8.4 m from
+        the frontier; the waypoints the breaker took back without this test on seed 0 (p_max
+        884 m instead of 452 m with the presence rule's 900 bit as the threshold below, 590 m
+        with revive_min_bit) mostly had one within 1.5 m.
+        And only a waypoint holding revive_min_bit, a region worth the trip: with the
+        presence rule's own 900 bit, the last robot of seed 1 drove 169 m more for 1143 bit
+        and found nothing the team had not seen."""
+        others = self._places_of_others(apart_m=self.s.params.shared_view_m)
+        everyone_elses = self.s.topo.positions()[self._places_of_others()]
+        clear2 = self.s.params.revive_clear_m ** 2
+        big = [g for g in self._given_up if g.e_bit >= self.s.params.revive_min_bit
+               and not (((everyone_elses - (g.x_m, g.y_m)) ** 2).sum(axis=1) < clear2).any()]
+        revived, _ = self._split_by_team_view(big, sight, others)
+        return revived
+
+    def _places_of_others(self, apart_m: float = 0.0) -> np.ndarray:
+        """Indices of the places teammates reported and this robot did not, leaving out those
+        within apart_m of one of this robot's own places (0: none left out)."""
+        mine = self.s.topo.visited_by(self.s.robot_id)
+        others = np.nonzero(self.s.topo.visited_by_others(self.s.robot_id) & ~mine)[0]
+        if apart_m > 0 and len(others) and mine.any():
+            xy = self.s.topo.positions()
+            d2 = ((xy[others, None, :] - xy[mine][None, :, :]) ** 2).sum(axis=2).min(axis=1)
+            others = others[d2 > apart_m ** 2]
+        return others
+
+    def _split_by_team_view(self, items: list[Waypoint], sight: np.ndarray,
+                            others: np.ndarray) -> tuple[list[Waypoint], list[Waypoint]]:
+        """(kept, dropped): the presence rule of drop_waypoints_seen_by_others for the
+        waypoints `items`, with `others` the indices of the teammates' places it counts."""
+        if len(others) == 0:
+            return list(items), []
+        xy = self.s.topo.positions()
+        reported = []   # (waypoint, i, j): waypoints with a report that may cancel them
+        keep = []
+        dropped = []
+        for w in items:
+            d = np.hypot(xy[others, 0] - w.x_m, xy[others, 1] - w.y_m)
+            near = others[d < self.s.params.d_cam_m]
+            wi, wj = self.s.local_map.cell_of(w.x_m, w.y_m)
+            if not self.s.local_map.in_window(wi, wj):
+                # Nothing to check against: the report stands.
+                (dropped if len(near) else keep).append(w)
+                continue
+            for v in near:
+                vi, vj = self.s.local_map.cell_of(xy[v, 0], xy[v, 1])
+                if not self.s.local_map.in_window(vi, vj) or line_of_sight(sight, wi, wj, vi, vj):
+                    reported.append((w, wi, wj))
+                    break
+            else:
+                keep.append(w)
+        if reported:
+            # A place more than 2 d_cam from every such waypoint sees nothing the waypoint
+            # would (1 m spare for cell rounding), so it is left out: the same result, much
+            # less ray casting.
+            wxy = np.array([(w.x_m, w.y_m) for w, *_ in reported])
+            reach2 = (2.0 * self.s.params.d_cam_m + 1.0) ** 2
+            d2 = ((xy[others, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
+            places = others[d2 <= reach2]
+            ij, inside = self.s.local_map.cells_of(xy[places])
+            seen = np.zeros(sight.shape, bool)
+            kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], self.s.params.team_view_rays,
+                                 self.s.params.d_cam_m / self.s.params.resolution_m, seen)
+            team_sight = sight.copy()
+            team_sight[seen & (sight == kernels.UNKNOWN)] = kernels.SEEN_BY_TEAM
+            wi = np.array([r[1] for r in reported], np.int64)
+            wj = np.array([r[2] for r in reported], np.int64)
+            unseen_bit = kernels.observable_unknown(team_sight, wi, wj, self.s.params.info_rays,
+                                                    self.s.params.d_cam_m / self.s.params.resolution_m) * self.s.params.entropy_per_cell_bit
+            for (w, *_), left in zip(reported, unseen_bit):
+                (keep if left >= self.s.params.presence_keep_bit else dropped).append(w)
+        return keep, dropped

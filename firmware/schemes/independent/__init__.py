@@ -1,0 +1,38 @@
+"""The no-communication baseline: every robot explores alone, as if it had no teammates.
+
+It keeps a topological graph of its own places (a vertex every d_build of travel) to route
+to its remembered waypoints beyond the local window, and sends nothing."""
+from __future__ import annotations
+
+import numpy as np
+
+from firmware.schemes.base import Candidate, PlanningView, Scheme, Services, cost_by_window
+from firmware.services.pose import TravelMilestones
+from hal.samples import OdometrySample
+
+
+class Independent(Scheme):
+    name = "independent"
+    doc = "no communication at all"
+    variants = {"": "no communication at all"}
+
+    def attach(self, services: Services) -> None:
+        super().attach(services)
+        self._milestones = TravelMilestones(services.params.d_build_m)
+
+    def on_travel(self, pose: OdometrySample, now_us: int) -> None:
+        if not self._milestones.due(pose.x_m, pose.y_m) or not self.s.has_planned():
+            return
+        # A place of its own (presence, no information): only its position is ever read.
+        self.s.topo.add((self.s.robot_id, round(pose.x_m * 100), round(pose.y_m * 100), 0, 1, 0, 0))
+        self._milestones.mark(pose.x_m, pose.y_m)
+
+    def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
+        cost_by_window(view, own)
+        return own
+
+    def drawables(self) -> dict:
+        topo = self.s.topo
+        xy = topo.positions()
+        return {"title": "each robot's own places (never shared)", "points": xy, "what": "places",
+                "segments": xy[topo.edges] if len(topo.edges) else np.zeros((0, 2, 2))}

@@ -1,0 +1,73 @@
+"""This robot's pose: the latest odometry sample and a short history of them, so a sample
+taken at another time (a LiDAR scan, a range) can be paired with the pose of its own time.
+
+Poses are in the odometry's frame, named by `frame_id`: the shared mission frame when the
+team measured its start poses at deployment, or the robot's own start frame when it did not
+(schemes that need a common frame declare it, see firmware.schemes.base).
+"""
+from __future__ import annotations
+
+import bisect
+import math
+
+from hal.interfaces import Odometry
+from hal.samples import OdometrySample
+
+SHARED_FRAME = "shared"
+
+
+class PoseService:
+    def __init__(self, odometry: Odometry, frame_id: str = SHARED_FRAME, history: int = 64) -> None:
+        """history: samples kept for pose_at (64 control ticks: 3.2 s at 20 Hz)."""
+        self._odometry = odometry
+        self.frame_id = frame_id
+        self._history = history
+        self._stamps: list[int] = []
+        self._samples: list[OdometrySample] = []
+
+    def read(self) -> OdometrySample:
+        """The newest sample (read from the odometry now), remembered for pose_at."""
+        s = self._odometry.read()
+        if not self._stamps or s.stamp_us > self._stamps[-1]:
+            self._stamps.append(s.stamp_us)
+            self._samples.append(s)
+            if len(self._stamps) > self._history:
+                del self._stamps[0], self._samples[0]
+        return s
+
+    def pose_at(self, stamp_us: int) -> tuple[float, float, float] | None:
+        """(x_m, y_m, yaw_rad) at stamp_us, interpolated between the samples around it
+        (yaw the short way round); the oldest or newest sample outside the history's span;
+        None before any sample."""
+        if not self._stamps:
+            return None
+        k = bisect.bisect_left(self._stamps, stamp_us)
+        if k == 0:
+            s = self._samples[0]
+            return s.x_m, s.y_m, s.yaw_rad
+        if k == len(self._stamps):
+            s = self._samples[-1]
+            return s.x_m, s.y_m, s.yaw_rad
+        a, b = self._samples[k - 1], self._samples[k]
+        if b.stamp_us == stamp_us:
+            return b.x_m, b.y_m, b.yaw_rad
+        f = (stamp_us - a.stamp_us) / (b.stamp_us - a.stamp_us)
+        dyaw = (b.yaw_rad - a.yaw_rad + math.pi) % (2 * math.pi) - math.pi
+        yaw = (a.yaw_rad + f * dyaw + math.pi) % (2 * math.pi) - math.pi
+        return a.x_m + f * (b.x_m - a.x_m), a.y_m + f * (b.y_m - a.y_m), yaw
+
+
+class TravelMilestones:
+    """Every `every_m` of travel (straight-line distance from the last milestone): where
+    schemes drop a place into their map."""
+
+    def __init__(self, every_m: float) -> None:
+        self.every_m = every_m
+        self._last_xy: tuple[float, float] | None = None
+
+    def due(self, x_m: float, y_m: float) -> bool:
+        last = self._last_xy
+        return last is None or math.hypot(x_m - last[0], y_m - last[1]) >= self.every_m
+
+    def mark(self, x_m: float, y_m: float) -> None:
+        self._last_xy = (x_m, y_m)
