@@ -9,37 +9,7 @@ from firmware.comms.frame import decode_frame, encode_frame, with_hops
 from firmware.comms.link import RATE_WINDOW_US, TDMA_GUARD_US, LinkLayer, TdmaSchedule, counter_names
 from hal.interfaces import RadioModem
 from hal.lora import profile
-from hal.samples import RadioRxFrame, RadioTxDone
-
-
-class FakeRadio:
-    """Half-duplex modem stand-in: busy for the profile's airtime after transmit()."""
-
-    def __init__(self, prof, refuse=False):
-        self.prof, self.refuse = prof, refuse
-        self.now_us = 0
-        self.busy_until_us = 0
-        self.sent: list[tuple[int, bytes]] = []
-        self.inbox: list = []
-
-    def transmit(self, payload: bytes) -> bool:
-        if self.refuse or self.busy() or len(payload) > self.prof.max_payload_bytes:
-            return False
-        self.sent.append((self.now_us, payload))
-        self.busy_until_us = self.now_us + self.prof.airtime_us(len(payload))
-        self.inbox.append(RadioTxDone(self.busy_until_us, True))
-        return True
-
-    def busy(self) -> bool:
-        return self.now_us < self.busy_until_us
-
-    def poll(self):
-        out = tuple(e for e in self.inbox if e.stamp_us <= self.now_us)
-        self.inbox = [e for e in self.inbox if e.stamp_us > self.now_us]
-        return out
-
-    def deliver(self, payload: bytes) -> None:
-        self.inbox.append(RadioRxFrame(self.now_us, bytes(payload), -80.0, 7.5))
+from tests.doubles import FakeRadio
 
 
 def topo(i, sender=1):

@@ -1,17 +1,16 @@
 """The presence rule (Bayer & Faigl IV-A, with the refinements in
-Explorer._drop_waypoints_seen_by_others) on hand-built local maps: a corridor along x with an
+PresenceRule.drop_waypoints_seen_by_others) on hand-built local maps: a corridor along x with an
 open, unexplored end, and a door in its north wall into an unexplored room."""
 import dataclasses
 
 import numpy as np
 import pytest
 
-from firmware.explorer import Explorer, Target
-from firmware.local_map import LocalMap
 from firmware.params import ExplorationParams
-from firmware.team import STRATEGIES, TeamView
-from firmware.topo_map import TopoMap
-from firmware.waypoints import Waypoint
+from firmware.services.local_map import LocalMap
+from firmware.services.targets import Target
+from firmware.services.waypoints import Waypoint
+from tests.doubles import PlannerRig
 
 P = ExplorationParams()
 # The pocket below holds less than the breaker's revive_min_bit: these tests lower it.
@@ -28,7 +27,7 @@ def paint(local_map: LocalMap, x0: float, x1: float, y0: float, y1: float, logod
     local_map.logodds[i0:i1 + 1, j0:j1 + 1] = logodds
 
 
-def _explorer(door: bool = True, params: ExplorationParams = P) -> Explorer:
+def _explorer(door: bool = True, params: ExplorationParams = P) -> PlannerRig:
     """Corridor y in [19, 21] m from x = 5 to 35 m, walls along both sides, unknown beyond
     x = 35 m (the open end) and north of a 1 m door at x in [20, 21] m (or, without the door,
     closed everywhere but at the open end)."""
@@ -48,17 +47,16 @@ def _explorer(door: bool = True, params: ExplorationParams = P) -> Explorer:
         box(4.8, 35.0, 18.8, 18.9, P.logodds_max)
         box(4.8, 35.0, 21.1, 21.2, P.logodds_max)
         box(4.8, 4.9, 18.8, 21.2, P.logodds_max)
-    topo = TopoMap(P.d_build_m, P.d_connect_m)
-    return Explorer(params, local_map, topo, TeamView(ME, STRATEGIES["minpos"]))
+    return PlannerRig(local_map, "bayer-faigl:minpos", ME, params)
 
 
-def _report(ex: Explorer, sender: int, x_m: float, y_m: float, e_inf_code: int) -> None:
+def _report(ex: PlannerRig, sender: int, x_m: float, y_m: float, e_inf_code: int) -> None:
     ex.topo.add((sender, round(x_m * 100), round(y_m * 100), 0, 1, e_inf_code, 0))
 
 
-def _apply(ex: Explorer, *waypoints: tuple[float, float]) -> list[tuple[float, float]]:
+def _apply(ex: PlannerRig, *waypoints: tuple[float, float]) -> list[tuple[float, float]]:
     ex.waypoints.items = [Waypoint(x, y, 1000.0) for x, y in waypoints]
-    ex._drop_waypoints_seen_by_others(ex.map.layers().sight)
+    ex.scheme.presence.drop_waypoints_seen_by_others(ex.local_map.layers().sight, ex.targets.target)
     return [(w.x_m, w.y_m) for w in ex.waypoints.items]
 
 
@@ -66,7 +64,7 @@ def test_a_waypoint_in_a_teammates_plain_view_is_dropped():
     ex = _explorer()
     _report(ex, OTHER, 33.0, 20.0, 0)        # stood near the open end, nothing left there
     assert _apply(ex, (30.0, 20.0)) == []
-    assert ex.dropped_by_presence == 1
+    assert ex.stat("waypoints_dropped_by_presence") == 1
 
 
 def test_a_teammate_still_busy_nearby_cancels_what_it_saw_too():
@@ -106,21 +104,21 @@ def test_passing_the_door_of_a_room_does_not_cancel_the_room():
 TEAMMATE_PLACE_X_M = 31.0
 
 
-def _both_before_a_pocket(params: ExplorationParams, my_place_x_m: float) -> Explorer:
+def _both_before_a_pocket(params: ExplorationParams, my_place_x_m: float) -> PlannerRig:
     """The closed corridor continued by an unexplored pocket (x in [35, 39] m, walls known
     around it), with a place of ours and one of the teammate's in the corridor. The
     teammate's view from its place covers the pocket, so the presence rule drops the
     waypoints that look into it."""
     ex = _explorer(door=False, params=params)
-    paint(ex.map, 35.0, 39.0, 18.8, 18.9, P.logodds_max)
-    paint(ex.map, 35.0, 39.0, 21.1, 21.2, P.logodds_max)
-    paint(ex.map, 38.9, 39.0, 18.8, 21.2, P.logodds_max)
+    paint(ex.local_map, 35.0, 39.0, 18.8, 18.9, P.logodds_max)
+    paint(ex.local_map, 35.0, 39.0, 21.1, 21.2, P.logodds_max)
+    paint(ex.local_map, 38.9, 39.0, 18.8, 21.2, P.logodds_max)
     _report(ex, ME, my_place_x_m, 20.0, 0)
     _report(ex, OTHER, TEAMMATE_PLACE_X_M, 20.0, 0)
     return ex
 
 
-def _plan_at(ex: Explorer, x_m: float, y_m: float):
+def _plan_at(ex: PlannerRig, x_m: float, y_m: float):
     return ex.plan(x_m, y_m, 1_000_000)
 
 
@@ -133,14 +131,14 @@ def test_the_last_robot_takes_back_a_frontier_each_left_to_the_others(teammate_a
     one is, we leave them."""
     ex = _both_before_a_pocket(BREAKING, 32.0)
     if teammate_active:
-        ex.team.positions[OTHER] = (10.0, 20.0)
+        ex.roster.heard_at(OTHER, 10.0, 20.0, 0)
     plan = _plan_at(ex, 32.0, 20.0)
-    assert ex.dropped_by_presence > 0
+    assert ex.stat("waypoints_dropped_by_presence") > 0
     if teammate_active:
-        assert plan.done and ex.revived == 0
+        assert plan.done and ex.stat("waypoints_revived") == 0
     else:
-        assert not plan.done and plan.target is not None and ex.revived > 0
-        revived = [w for w in ex.waypoints.items if w in ex._given_up]
+        assert not plan.done and plan.target is not None and ex.stat("waypoints_revived") > 0
+        revived = [w for w in ex.waypoints.items if w in ex.scheme.presence.given_up]
         assert revived and all(abs(w.x_m - TEAMMATE_PLACE_X_M) >= P.revive_clear_m for w in revived)
         assert all(w.e_bit >= BREAKING.revive_min_bit for w in revived)
 
@@ -150,8 +148,8 @@ def test_a_frontier_a_teammate_saw_from_elsewhere_stays_given_up():
     saw stays seen, even for the last robot."""
     ex = _both_before_a_pocket(BREAKING, 28.0)
     plan = _plan_at(ex, 28.0, 20.0)
-    assert ex.dropped_by_presence > 0
-    assert plan.done and ex.revived == 0
+    assert ex.stat("waypoints_dropped_by_presence") > 0
+    assert plan.done and ex.stat("waypoints_revived") == 0
 
 
 def test_a_frontier_a_teammate_stood_near_stays_given_up():
@@ -160,8 +158,8 @@ def test_a_frontier_a_teammate_stood_near_stays_given_up():
     breaker took back what teammates had explored, and p_max went from 452 to 884 m)."""
     ex = _both_before_a_pocket(dataclasses.replace(BREAKING, revive_clear_m=10.0), 32.0)
     plan = _plan_at(ex, 32.0, 20.0)
-    assert ex.dropped_by_presence > 0
-    assert plan.done and ex.revived == 0
+    assert ex.stat("waypoints_dropped_by_presence") > 0
+    assert plan.done and ex.stat("waypoints_revived") == 0
 
 
 def test_a_pocket_below_revive_min_bit_is_not_worth_the_trip():
@@ -169,13 +167,13 @@ def test_a_pocket_below_revive_min_bit_is_not_worth_the_trip():
     the last robot drove 169 m more for 1143 bit and found nothing new)."""
     ex = _both_before_a_pocket(P, 32.0)
     plan = _plan_at(ex, 32.0, 20.0)
-    assert ex._given_up and max(g.e_bit for g in ex._given_up) < P.revive_min_bit
-    assert plan.done and ex.revived == 0
+    assert ex.scheme.presence.given_up and max(g.e_bit for g in ex.scheme.presence.given_up) < P.revive_min_bit
+    assert plan.done and ex.stat("waypoints_revived") == 0
 
 
 def test_the_deadlock_breaker_can_be_turned_off():
     ex = _both_before_a_pocket(dataclasses.replace(BREAKING, shared_view_m=0.0), 32.0)
-    assert _plan_at(ex, 32.0, 20.0).done and ex.revived == 0
+    assert _plan_at(ex, 32.0, 20.0).done and ex.stat("waypoints_revived") == 0
 
 
 def test_the_current_target_is_held_against_the_presence_rule():
@@ -184,9 +182,9 @@ def test_the_current_target_is_held_against_the_presence_rule():
     between two targets for minutes (maze_b, MinPos, seed 5). Other waypoints still go."""
     ex = _explorer(params=HOLDING)
     _report(ex, OTHER, 33.0, 20.0, 0)
-    ex.target = Target(30.0, 20.0, 5.0)
+    ex.targets.target = Target(30.0, 20.0, 5.0)
     assert _apply(ex, (30.0, 20.0), (33.5, 20.0)) == [(30.0, 20.0)]
-    ex.target = Target(30.0, 20.0, 5.0, from_team=True)     # a W_inf vertex holds nothing of ours
+    ex.targets.target = Target(30.0, 20.0, 5.0, from_team=True)     # a W_inf vertex holds nothing of ours
     assert _apply(ex, (30.0, 20.0)) == []
 
 
@@ -197,22 +195,22 @@ def test_a_target_whose_information_was_seen_from_close_by_is_done_with(case):
     there again. Seen from farther, or still open, or not our own waypoint: nothing is banned."""
     ex = _explorer(params=SEEING)
     ex.waypoints.items = [Waypoint(30.0, 20.0, 1000.0)] if case == "still open" else []
-    ex.target = {"seen from close by": Target(11.0, 20.0, 1.0),
+    ex.targets.target = {"seen from close by": Target(11.0, 20.0, 1.0),
                  "seen from afar": Target(12.0, 20.0, 2.0),
                  "still open": Target(30.0, 20.0, 20.0),
                  "a W_inf vertex": Target(11.0, 20.0, 1.0, from_team=True)}[case]
-    x, y = ex.target.x_m, ex.target.y_m
+    x, y = ex.targets.target.x_m, ex.targets.target.y_m
     _plan_at(ex, 10.0, 20.0)
     banned = case == "seen from close by"
-    assert ex.waypoints.is_banned(x, y) == banned and ex.seen_on_way == int(banned)
+    assert ex.waypoints.is_banned(x, y) == banned and ex.stat("targets_seen_on_way") == int(banned)
 
 
 def test_holding_the_target_and_ending_it_when_seen_are_off_by_default():
     assert not P.presence_holds_target and P.target_seen_within_m == 0.0
     ex = _explorer()
     _report(ex, OTHER, 33.0, 20.0, 0)
-    ex.target = Target(30.0, 20.0, 5.0)
+    ex.targets.target = Target(30.0, 20.0, 5.0)
     assert _apply(ex, (30.0, 20.0)) == []
-    ex.target = Target(11.0, 20.0, 1.0)
+    ex.targets.target = Target(11.0, 20.0, 1.0)
     _plan_at(ex, 10.0, 20.0)
-    assert ex.seen_on_way == 0 and not ex.waypoints.is_banned(11.0, 20.0)
+    assert ex.stat("targets_seen_on_way") == 0 and not ex.waypoints.is_banned(11.0, 20.0)

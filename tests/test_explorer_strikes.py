@@ -6,9 +6,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
 
-from firmware.explorer import Explorer, escape_start, nearest_traversable
 from firmware.params import ExplorationParams
-from firmware.waypoints import Waypoint
+from firmware.services.grid_paths import escape_start, nearest_traversable
+from firmware.services.waypoints import Waypoint
+from tests.doubles import PlannerRig
 from tests.test_explorer_presence import _explorer as corridor
 from tests.test_explorer_presence import paint
 
@@ -18,21 +19,21 @@ TARGET_XY = (30.0, 20.0)
 SECOND_US = 1_000_000
 
 
-def _explorer(wall_across_at_x_m: float) -> Explorer:
+def _explorer(wall_across_at_x_m: float) -> PlannerRig:
     """The closed corridor of the presence tests (y in [19, 21] m from x = 5 to 35 m, open
     and unexplored beyond x = 35 m) with a wall across it at the given x: the open end lies
     beyond what the robot can reach. The target: a waypoint near the open end."""
     ex = corridor(door=False)
-    paint(ex.map, wall_across_at_x_m, wall_across_at_x_m + 0.1, 18.8, 21.2, P.logodds_max)
+    paint(ex.local_map, wall_across_at_x_m, wall_across_at_x_m + 0.1, 18.8, 21.2, P.logodds_max)
     ex.waypoints.items = [Waypoint(*TARGET_XY, 5000.0)]
     return ex
 
 
-def _strike_counts(ex: Explorer) -> dict[tuple[float, float], int]:
-    return {key: count for key, (count, _) in ex._strikes.items()}
+def _strike_counts(ex: PlannerRig) -> dict[tuple[float, float], int]:
+    return ex.targets.strikes()
 
 
-def _in_w(ex: Explorer) -> bool:
+def _in_w(ex: PlannerRig) -> bool:
     return any((w.x_m, w.y_m) == TARGET_XY for w in ex.waypoints.items)
 
 
@@ -46,7 +47,7 @@ def test_fast_replans_strike_an_unreachable_target_once_per_planning_period():
     plan = ex.plan(*ROBOT_XY, SECOND_US)
     assert _in_w(ex) and not plan.done and _strike_counts(ex) == {TARGET_XY: 2}
     plan = ex.plan(*ROBOT_XY, 2 * SECOND_US)
-    assert not _in_w(ex) and ex.dropped_unreachable == 1
+    assert not _in_w(ex) and ex.stat("targets_unreachable") == 1
     assert plan.done, "a target unreachable for three planning periods is dropped for good"
 
 

@@ -1,75 +1,32 @@
 """The firmware against a scripted HAL: it terminates in a closed room, and a robot whose
 wheels do not move marks what blocks it (unless its LiDAR shows it), drops its targets for
 good, and still terminates."""
-import math
-
 import numpy as np
+import pytest
 
 from firmware.agent import ExplorerAgent
-from hal.bundle import Hal
-from hal.samples import DriveLimits, LidarScan, OdometrySample
+from firmware.services.waypoints import Waypoint
+from hal.lora import profile
+from tests.doubles import ScriptedHal
 
 
-class ScriptedHal:
-    """A robot standing still at the origin with a LiDAR that sees `ranges_m` every 100 ms."""
-
-    def __init__(self, ranges_m: np.ndarray):
-        self.t_us = 0
-        self.ranges_m = ranges_m.astype(np.float32)
-        self.commands = []
-        self._last_scan_us = -1
-
-    def now_us(self):
-        return self.t_us
-
-    def latest_scan(self):
-        if self.t_us - self._last_scan_us < 100_000:
-            return None
-        self._last_scan_us = self.t_us
-        n = len(self.ranges_m)
-        return LidarScan(self.t_us, -math.pi, 2 * math.pi / n, 10.0, self.ranges_m)
-
-    def read(self):
-        return OdometrySample(self.t_us, 0.0, 0.0, 0.0, 0.0, 0.0)   # the wheels never turn
-
-    def limits(self):
-        return DriveLimits(0.8, 1.5, 0.25)
-
-    def command(self, v_mps, omega_radps):
-        self.commands.append((v_mps, omega_radps))
-
-    def ranges(self):
-        return ()
-
-    def bearings(self):
-        return ()
-
-    def transmit(self, payload):
-        return False
-
-    def busy(self):
-        return False
-
-    def poll(self):
-        return ()
-
-    def hal(self) -> Hal:
-        return Hal(0, self, self, self, self, self, self, self)
-
-
-def run(fake: ScriptedHal, seconds: float) -> ExplorerAgent:
-    agent = ExplorerAgent(fake.hal())
+def run(fake: ScriptedHal, seconds: float, scheme: str = "independent") -> ExplorerAgent:
+    agent = ExplorerAgent(fake.hal(), scheme=scheme)
     agent.setup()
-    while fake.t_us < seconds * 1e6 and not agent.done:
-        agent.tick()
-        fake.t_us += 50_000
+    return fake.run(agent, seconds)
+
+
+def bayer_faigl_robot(fake: ScriptedHal) -> ExplorerAgent:
+    """A Bayer & Faigl robot whose radio sends nothing and hears nothing."""
+    agent = ExplorerAgent(fake.hal(), scheme="bayer-faigl:greedy", radio_profile=profile("ideal-100Bps"))
+    agent.setup()
     return agent
 
 
 def test_a_closed_room_seen_whole_is_done_at_once():
     agent = run(ScriptedHal(np.full(360, 3.0)), 30)
     assert agent.done and agent.status == "complete"
-    assert agent.explorer.waypoints.items == []
+    assert agent.waypoints.items == []
     assert agent.hal.drive.commands[-1] == (0.0, 0.0)
 
 
@@ -78,8 +35,8 @@ def test_a_robot_that_cannot_move_marks_the_obstacle_drops_targets_and_stops():
     ranges[150:210] = 10.0          # an opening straight ahead: a corridor leading away
     agent = run(ScriptedHal(ranges), 1200)
     assert agent.bumps >= 1 and agent.local_map.bumps
-    e = agent.explorer
-    assert e.dropped_stalled + e.dropped_unreachable >= 1
+    stats = agent.stats()
+    assert stats["targets_stalled"] + stats["targets_unreachable"] >= 1
     assert agent.done, "targets that cannot be reached must be dropped for good, not retried forever"
 
 
@@ -90,25 +47,24 @@ def test_a_stall_against_something_the_lidar_shows_marks_no_bump_and_follows_clo
     agent = run(ScriptedHal(ranges), 1200)
     assert agent.bumps >= 1, "the wheels stalled"
     assert agent.local_map.bumps == [], "the map has the post already: no bump closes the corridor"
-    assert agent.follower._closely_for_m > 0.0
+    assert agent.follower.following_closely
     assert agent.done, "a robot that really cannot move still drops its targets for good and stops"
 
 
 def test_information_at_a_vertex_falls_and_rises_again_with_a_new_revision_each_time():
     """A robot's word about one of its vertices is replaced, not min-ed: the shared map
     follows it down when a waypoint there is covered and up when a new one appears."""
-    from firmware.waypoints import Waypoint
-    agent = ExplorerAgent(ScriptedHal(np.full(360, 3.0)).hal())
-    agent.setup()
+    fake = ScriptedHal(np.full(360, 3.0))
+    agent = bayer_faigl_robot(fake)
     agent.topo.add((0, 0, 0, 0, 1, 200, 0))           # the robot's own vertex at the origin
     agent.topo.add((0, 500, 0, 0, 1, 0, 0))           # and one 5 m away, with nothing left
-    waypoints = agent.explorer.waypoints
+    waypoints = agent.waypoints
     # (waypoints held, vertex code after reporting, robot's revision there). The third step
     # moves the information by 6 %, below the step that is worth a record: no new revision.
     steps = [([], 0, 1), ([Waypoint(0.5, 0.0, 5000.0)], 197, 2), ([Waypoint(0.5, 0.0, 5300.0)], 197, 2), ([], 0, 3)]
     for items, code, revision in steps:
         waypoints.items = items
-        agent._report_information_changes()
+        agent.scheme.after_plan(fake.read(), fake.t_us)
         assert agent.topo.e_inf_codes().tolist() == [code, 0]
         assert [a.tolist() for a in agent.topo.word_of(0)] == [[revision, 0], [code, 0]]
 
@@ -118,15 +74,19 @@ def test_a_teammate_place_this_robot_sees_empty_is_settled_for_the_team():
     whole, gets this robot's word "nothing here": the vertex's e_inf falls to zero for every
     map that hears it, so nobody else drives there for nothing."""
     fake = ScriptedHal(np.full(360, 3.0))
-    agent = ExplorerAgent(fake.hal())
-    agent.setup()
+    agent = bayer_faigl_robot(fake)
     agent.topo.add((1, 100, 0, 0, 1, 200, 0))           # teammate 1 was 1 m away, expecting a lot
     agent.topo.add((2, 5000, 0, 0, 1, 180, 0))          # teammate 2, 50 m away: beyond our map
-    while fake.t_us < 30e6:
-        agent.tick()
-        fake.t_us += 50_000
+    fake.run(agent, 30)
     assert (0, 100, 0, 0, 0, 0, 0) in agent.topo.records()
     code_at = {tuple(np.round(xy, 2)): int(c) for xy, c in zip(agent.topo.positions(), agent.topo.e_inf_codes())}
     assert code_at[(1.0, 0.0)] == 0
     assert code_at[(50.0, 0.0)] == 180, "a place our map does not hold keeps its sender's word"
     assert not any(r[0] == 0 and r[1] == 5000 for r in agent.topo.records())
+
+
+def test_a_scheme_refuses_to_start_without_what_it_needs():
+    with pytest.raises(ValueError, match="needs radio"):
+        ExplorerAgent(ScriptedHal(np.full(360, 3.0)).hal(), scheme="bayer-faigl:minpos")
+    with pytest.raises(ValueError, match="needs mesh"):
+        ExplorerAgent(ScriptedHal(np.full(360, 3.0)).hal(), scheme="dense:minpos", radio_profile=profile("ideal-100Bps"))

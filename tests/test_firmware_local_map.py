@@ -5,7 +5,8 @@ import math
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
-from firmware.local_map import BinnedScan, LocalMap, bin_scan, decode_keyframe, encode_keyframe, keyframe_bytes
+from firmware.schemes.dense_baseline.keyframes import decode_keyframe, encode_keyframe, keyframe_bytes
+from firmware.services.local_map import BinnedScan, LocalMap, bin_scan
 from firmware.params import ExplorationParams
 
 P = ExplorationParams()

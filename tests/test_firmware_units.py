@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from firmware.controller import PathFollower
-from firmware.local_map import BinnedScan, LocalMap, bin_scan, something_within
+from firmware.services.motion import PathFollower
+from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task
-from firmware.topo_map import TopoMap
+from firmware.services.topo_map import TopoMap
 from firmware import kernels
 
 

@@ -16,18 +16,11 @@ from hal.odrive_can import (AXIS_STATE_CLOSED_LOOP_CONTROL, AXIS_STATE_IDLE, CON
                             heartbeat, set_input_vel)
 from hal.registry import backend_class
 from hal.samples import DriveLimits
+from tests.doubles import StepClock
 
 GEOMETRY = DiffDriveGeometry(left_node=3, right_node=4, wheel_radius_m=0.08, track_width_m=0.4)
 LIMITS = DriveLimits(max_v_mps=0.8, max_omega_radps=1.5, robot_radius_m=0.25)
 _channels = itertools.count()
-
-
-class StepClock:
-    def __init__(self) -> None:
-        self.t_us = 0
-
-    def now_us(self) -> int:
-        return self.t_us
 
 
 class FakeAxes:

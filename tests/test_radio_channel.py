@@ -26,6 +26,7 @@ from radio_sim.propagation import (
 )
 from world_sim.occupancy_map import OccupancyMap
 from world_sim.seeding import stream
+from tests.doubles import StepClock
 
 G1 = profile("eu868-g1")                    # SF7 / BW125, 14 dBm
 T_SYM_US = 1024                             # 2^7 / 125 kHz
@@ -51,14 +52,6 @@ class World:
     def rssi(self, sender_id: int, receiver_id: int) -> float:
         sent = [f for f in self.frames if f.sender_id == sender_id]
         return next(r.rssi_dbm for r in sent[0].receptions if r.receiver_id == receiver_id)
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.t_us = 0
-
-    def now_us(self) -> int:
-        return self.t_us
 
 
 # ---------------------------------------------------------------------------------------------
@@ -499,7 +492,7 @@ def test_idle_advance_is_cheap():
 
 
 def test_sim_radio_modem_transmit_busy_poll_and_rearm():
-    clock = Clock()
+    clock = StepClock()
     channel = Channel(G1, seed=3)
     pos = [(0.0, 0.0), (10.0, 0.0), (-10.0, 0.0)]
     modems = attach_sim_radios(channel, clock, [lambda p=p: p for p in pos])

@@ -6,7 +6,7 @@ import networkx as nx
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
-from firmware.topo_map import TopoMap, fold_records
+from firmware.services.topo_map import TopoMap, fold_records
 
 SETTINGS = settings(max_examples=60, deadline=None)
 

@@ -34,6 +34,10 @@ class PathFollower:
         self.set_path(np.zeros((0, 2)))
 
     @property
+    def following_closely(self) -> bool:
+        return self._closely_for_m > 0.0
+
+    @property
     def active(self) -> bool:
         return self._next < len(self.path_xy)
 

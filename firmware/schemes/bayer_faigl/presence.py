@@ -20,8 +20,9 @@ class PresenceRule:
         self._given_up: list[Waypoint] = []   # what the rule dropped, for the breaker
 
     @property
-    def holds_given_up(self) -> bool:
-        return bool(self._given_up)
+    def given_up(self) -> list[Waypoint]:
+        """What the rule dropped and the breaker may still take back (a copy)."""
+        return list(self._given_up)
 
     def drop_waypoints_seen_by_others(self, sight: np.ndarray, target: Target | None) -> list[Waypoint]:
         """Bayer & Faigl: a waypoint is removed when another robot reported its presence

@@ -93,7 +93,7 @@ class BayerFaigl(Scheme):
         candidates = own + self._team_targets(view.sight)
         if p.shared_view_m > 0:
             self.presence.remember_given_up(self._dropped_this_cycle, view.sight)
-        if not candidates and self.presence.holds_given_up and not self.s.roster.any_active():
+        if not candidates and self.presence.given_up and not self.s.roster.any_active():
             revived = self.presence.revive_shared_frontiers(view.sight)
             self.s.waypoints.items.extend(revived)
             self.presence.revived += len(revived)
