@@ -25,7 +25,7 @@ from firmware.schemes.base import NEEDS, PRIORITY_STATUS, Scheme, Services
 from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.services.motion import PathFollower, StallDetector
 from firmware.services.planner import Planner
-from firmware.services.pose import PoseService
+from firmware.services.pose import SHARED_FRAME, PoseService
 from firmware.services.roster import Roster
 from firmware.services.targets import TargetKeeper
 from firmware.services.topo_map import TopoMap
@@ -72,16 +72,20 @@ class ExplorerAgent:
         ])
 
     def _has(self, need: str, radio_profile: RadioProfile | None) -> bool:
+        """Is `need` (schemes.base.NEEDS) met? A shared frame shows only in the odometry's
+        samples, so setup() checks that one."""
         hal = self.hal
-        return {"radio": hal.radio is not None and radio_profile is not None,
-                "relay": hal.radio is not None and radio_profile is not None,
-                "uwb": hal.uwb is not None, "aoa": hal.aoa is not None, "mesh": hal.mesh is not None,
-                "shared_frame": True}[need]
+        if need in ("radio", "relay"):
+            return hal.has("radio") and radio_profile is not None
+        return need == "shared_frame" or hal.has(need)
 
     # --- lifecycle --------------------------------------------------------------------
     def setup(self) -> None:
         self.pose = PoseService(self.hal.odometry)
         pose = self.pose.read()
+        if "shared_frame" in self.scheme.needs_of() and pose.frame_id != SHARED_FRAME:
+            raise ValueError(f"scheme {self.scheme.spec} needs shared_frame ({NEEDS['shared_frame']}), but robot "
+                             f"{self.hal.robot_id}'s odometry reports frame {pose.frame_id!r}")
         limits = self.hal.drive.limits()
         if limits.robot_radius_m > self.p.robot_radius_m:
             raise ValueError(
@@ -95,7 +99,7 @@ class ExplorerAgent:
         self.scheme.attach(Services(
             robot_id=self.hal.robot_id, params=self.p, rates=self.rates, local_map=self.local_map,
             waypoints=self.waypoints, topo=self.topo, roster=self.roster,
-            send=self._send if self.link is not None else None, mesh=self.hal.mesh,
+            send=self._send if self.link is not None else None, mesh=self.hal.mesh if self.hal.has("mesh") else None,
             last_scan_binned=self._binned_last_scan, has_planned=lambda: self._last_plan_us >= 0))
         self.scheduler.tasks[1:1] = self.scheme.tasks()   # after the radio task
         self.planner = Planner(self.p, self.local_map, self.topo, self.waypoints, self.targets, self.scheme)

@@ -23,10 +23,16 @@ class LidarScan:
     ranges_m: np.ndarray = field(repr=False)  # float32, one per beam
 
 
+# The frame a team shares when it measured its robots' start poses at deployment (Bayer &
+# Faigl's assumption 1). A robot that did not reports poses in a frame of its own (named
+# after it), whose relation to the others' it does not know.
+SHARED_FRAME = "shared"
+
+
 @dataclass(frozen=True)
 class OdometrySample:
-    """Pose estimate in the mission frame (shared start frame, Bayer & Faigl assumption 1),
-    as the robot's localisation reports it: it may drift from the truth."""
+    """Pose estimate as the robot's localisation reports it (it may drift from the truth),
+    in the frame named by frame_id."""
 
     stamp_us: int
     x_m: float
@@ -34,6 +40,7 @@ class OdometrySample:
     yaw_rad: float
     v_mps: float
     omega_radps: float
+    frame_id: str = SHARED_FRAME
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from hal.lora import PROFILES
+from hal.sim.odometry import FRAMES
 from host_tools.mission import MissionConfig, run_mission
 from host_tools.overrides import describe, parse_overrides, params_with
 from host_tools.progress import progress_bar
@@ -24,6 +25,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-sim-s", type=float, default=14400.0, help="simulated time limit in seconds (default %(default)s)")
     p.add_argument("--radio", default="ideal-100Bps", choices=sorted(PROFILES), help="radio profile (default %(default)s)")
     add_scheme_option(p, default="greedy")
+    p.add_argument("--frames", choices=FRAMES, default="shared",
+                   help="odometry frames: one shared by the team (start poses measured at deployment), or each "
+                        "robot's own, unknown to the others (default %(default)s)")
     p.add_argument("--serial-radio", action="store_true",
                    help="drive every robot's radio through a virtual RN2483 modem on a pseudo-terminal")
     p.add_argument("--capture", type=Path, default=None, metavar="FILE",
@@ -54,7 +58,7 @@ def main(args: argparse.Namespace) -> int:
         return 2
     cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
                         max_sim_s=args.max_sim_s, radio=args.radio, starts=tuple(args.start),
-                        strategy=args.strategy, serial_radio=args.serial_radio,
+                        strategy=args.strategy, frames=args.frames, serial_radio=args.serial_radio,
                         capture_path=None if args.capture is None else str(args.capture))
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
     state = {"last": 0.0}

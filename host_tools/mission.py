@@ -50,6 +50,9 @@ class MissionConfig:
     # per robot, exactly those. The robots' odometry starts from these poses, so they share
     # one frame, as a team that measured its start poses at deployment does.
     starts: tuple[tuple[float, float, float | None], ...] = ()
+    # The robots' odometry frame: "shared" (start poses measured at deployment) or each
+    # robot's "own" (origin at its own start, unknown to the others; the host keeps the truth).
+    frames: str = "shared"
     serial_radio: bool = False          # every robot's radio through a virtual RN2483 on a pty
     capture_path: str | None = None     # record every frame on the air (JSON Lines capture)
 
@@ -102,6 +105,7 @@ class MissionResult:
             "robots": self.config.robots,
             "radio": self.config.radio,
             "strategy": self.config.strategy,
+            "frames": self.config.frames,
             "coverage": round(self.coverage, 6),
             "coverage_raw_component": round(self.coverage_raw, 6),
             "overlap": round(self.overlap, 6),
@@ -212,7 +216,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     agents = []
     for i in range(cfg.robots):
         scheme = build_scheme(cfg.strategy)
-        hal = build_sim_hal(world, i, radio=radios[i])
+        hal = build_sim_hal(world, i, radio=radios[i], frame=cfg.frames)
         if "mesh" in scheme.needs_of():
             hal = dataclasses.replace(hal, mesh=mesh.endpoint(i))
         agent = ExplorerAgent(hal, params, rates, scheme, profile, team_size=cfg.robots)

@@ -48,7 +48,7 @@ class SweepSpec:
     overrides: Overrides = ()
 
     def lora_strategies(self) -> tuple[str, ...]:
-        return tuple(s for s in self.strategies if build_scheme(s).needs_of() == {"radio"})
+        return tuple(s for s in self.strategies if "radio" in build_scheme(s).needs_of() and "mesh" not in build_scheme(s).needs_of())
 
     def trials(self) -> list[MissionConfig]:
         grid = [(self.radio, s) for s in self.strategies]

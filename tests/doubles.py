@@ -106,7 +106,7 @@ class ScriptedHal:
         return ()
 
     def hal(self) -> Hal:
-        return Hal(0, self, self, self, self, self, self, self)
+        return Hal(robot_id=0, clock=self, lidar=self, odometry=self, drive=self, radio=self, uwb=self, aoa=self)
 
     def run(self, agent: ExplorerAgent, seconds: float) -> ExplorerAgent:
         """Tick the agent every 50 ms until it is done or `seconds` have passed."""

@@ -1,13 +1,16 @@
 """The firmware against a scripted HAL: it terminates in a closed room, and a robot whose
 wheels do not move marks what blocks it (unless its LiDAR shows it), drops its targets for
 good, and still terminates."""
+import dataclasses
+
 import numpy as np
 import pytest
 
 from firmware.agent import ExplorerAgent
 from firmware.services.waypoints import Waypoint
+from hal.bundle import Hal
 from hal.lora import profile
-from tests.doubles import ScriptedHal
+from tests.doubles import ScriptedHal, StepClock
 
 
 def run(fake: ScriptedHal, seconds: float, scheme: str = "independent") -> ExplorerAgent:
@@ -90,3 +93,25 @@ def test_a_scheme_refuses_to_start_without_what_it_needs():
         ExplorerAgent(ScriptedHal(np.full(360, 3.0)).hal(), scheme="bayer-faigl:minpos")
     with pytest.raises(ValueError, match="needs mesh"):
         ExplorerAgent(ScriptedHal(np.full(360, 3.0)).hal(), scheme="dense:minpos", radio_profile=profile("ideal-100Bps"))
+
+
+def test_optional_peripherals_default_to_null_backends():
+    hal = Hal(robot_id=3, clock=StepClock(), lidar=None, odometry=None, drive=None)
+    assert not any(hal.has(p) for p in ("radio", "uwb", "aoa", "mesh"))
+    assert hal.uwb.ranges() == () and hal.aoa.bearings() == () and hal.radio.poll() == ()
+    assert not hal.radio.transmit(b"x") and hal.mesh.receive() == ()
+    with pytest.raises(ValueError, match="unknown optional peripheral"):
+        hal.has("lidar")
+
+
+def test_a_scheme_that_needs_a_shared_frame_refuses_odometry_in_a_frame_of_its_own():
+    class OwnFrame(ScriptedHal):
+        def read(self):
+            return dataclasses.replace(super().read(), frame_id="robot0")
+
+    fake = OwnFrame(np.full(360, 3.0))
+    with pytest.raises(ValueError, match="needs shared_frame"):
+        ExplorerAgent(fake.hal(), scheme="bayer-faigl:minpos", radio_profile=profile("ideal-100Bps")).setup()
+    agent = ExplorerAgent(fake.hal(), scheme="independent")
+    agent.setup()
+    assert fake.run(agent, 30).done, "a robot alone does not care which frame it maps in"

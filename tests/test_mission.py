@@ -48,6 +48,18 @@ def test_trajectory_digest_for_a_fixed_seed_is_pinned():
 PINNED_TRAJECTORY_SHA256 = "006cdc9437a762d0760a5b19cf2e7dfe9685199461dcae95a1c14cb253873536"
 
 
+def test_robots_in_frames_of_their_own_explore_as_well_without_knowing_the_others_frames():
+    """Each robot's odometry starts at its own origin facing +x: the firmware never sees the
+    mission frame, and a scheme that works alone covers the cave all the same."""
+    cfg = MissionConfig(map_spec="cave:2:40x40", robots=2, seed=4, max_sim_s=900, strategy="independent")
+    shared, own = run_mission(cfg), run_mission(MissionConfig(**{**cfg.__dict__, "frames": "own"}))
+    assert {a.pose.frame_id for a in own.agents} == {"robot0", "robot1"}
+    assert own.termination == shared.termination == "complete"
+    assert own.coverage >= 0.99 and shared.coverage >= 0.99 and own.robots_in_wall == 0
+    with pytest.raises(ValueError, match="needs shared_frame"):
+        run_mission(MissionConfig(**{**cfg.__dict__, "frames": "own", "strategy": "minpos"}))
+
+
 def test_serial_radio_gives_the_same_mission_as_the_in_process_radio(shared_maps):
     cfg = MissionConfig(map_spec=str(shared_maps / "depot.yaml"), robots=2, seed=3, max_sim_s=25,
                         radio="eu868-g3", strategy="greedy")

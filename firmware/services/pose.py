@@ -11,19 +11,23 @@ import bisect
 import math
 
 from hal.interfaces import Odometry
-from hal.samples import OdometrySample
+from hal.samples import SHARED_FRAME, OdometrySample
 
-SHARED_FRAME = "shared"
+__all__ = ["SHARED_FRAME", "PoseService", "TravelMilestones"]
 
 
 class PoseService:
-    def __init__(self, odometry: Odometry, frame_id: str = SHARED_FRAME, history: int = 64) -> None:
+    def __init__(self, odometry: Odometry, history: int = 64) -> None:
         """history: samples kept for pose_at (64 control ticks: 3.2 s at 20 Hz)."""
         self._odometry = odometry
-        self.frame_id = frame_id
         self._history = history
         self._stamps: list[int] = []
         self._samples: list[OdometrySample] = []
+
+    @property
+    def frame_id(self) -> str | None:
+        """The frame of the poses (hal.samples.OdometrySample.frame_id); None before any."""
+        return self._samples[-1].frame_id if self._samples else None
 
     def read(self) -> OdometrySample:
         """The newest sample (read from the odometry now), remembered for pose_at."""

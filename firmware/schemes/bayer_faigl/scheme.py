@@ -40,7 +40,7 @@ class BayerFaigl(Scheme):
                 "minpos": "lowest MinPos rank on the shared topological map, ties by Greedy"}
     default_variant = "minpos"
     records = ("topo",)
-    needs = frozenset({"radio"})
+    needs = frozenset({"radio", "shared_frame"})
 
     def attach(self, services: Services) -> None:
         super().attach(services)
