@@ -6,8 +6,9 @@ runs (firmware.schemes). This module is the task table and the wiring between th
 services (firmware.services) and the scheme; every decision is made in one of those. Every
 tick runs the tasks that are due:
 
-    radio    20 Hz  link layer: hear records (the scheme's to the scheme), send queued ones
-                    within the airtime budget
+    radio    20 Hz  link layer: hear records (the scheme's to the scheme, heartbeats to the
+                    roster), send queued ones within the airtime budget
+    heartbeat 0.1 Hz  queue this robot's heartbeat (pose, exploring or done), if it talks
     (the scheme's own tasks, if any)
     lidar    10 Hz  fold the newest scan into the local map (and move the window)
     control  20 Hz  tell the scheme of travel, follow the path, react to stalls
@@ -94,14 +95,17 @@ class ExplorerAgent:
         self.local_map = LocalMap(self.p, pose.x_m, pose.y_m)
         self.topo = TopoMap(self.p.d_build_m, self.p.d_connect_m)
         self.waypoints = WaypointSet(self.p)
-        self.roster = Roster(self.hal.robot_id)
+        self.roster = Roster(self.hal.robot_id, self.rates.roster_max_age_us)
         self.targets = TargetKeeper(self.p, self.waypoints)
         self.scheme.attach(Services(
             robot_id=self.hal.robot_id, params=self.p, rates=self.rates, local_map=self.local_map,
             waypoints=self.waypoints, topo=self.topo, roster=self.roster,
             send=self._send if self.link is not None else None, mesh=self.hal.mesh if self.hal.has("mesh") else None,
             last_scan_binned=self._binned_last_scan, has_planned=lambda: self._last_plan_us >= 0))
-        self.scheduler.tasks[1:1] = self.scheme.tasks()   # after the radio task
+        own_tasks = self.scheme.tasks()
+        if self.link is not None:
+            own_tasks.insert(0, Task("heartbeat", self.rates.heartbeat_hz, self._task_heartbeat))
+        self.scheduler.tasks[1:1] = own_tasks   # after the radio task
         self.planner = Planner(self.p, self.local_map, self.topo, self.waypoints, self.targets, self.scheme)
         self.follower = PathFollower(self.p, limits.max_v_mps, limits.max_omega_radps)
         self.stall = StallDetector(self.p, self.rates.control_hz)
@@ -136,10 +140,19 @@ class ExplorerAgent:
             if rtype in self.scheme.records:
                 self.scheme.on_record(rtype, v, now_us)
             elif rtype == "pose":
-                if v["done"]:
-                    self.roster.heard_done(v["sender_id"], v["x_cm"] / 100.0, v["y_cm"] / 100.0, now_us)
-                else:
-                    self.roster.heard_at(v["sender_id"], v["x_cm"] / 100.0, v["y_cm"] / 100.0, now_us)
+                self.roster.heard_status(v["sender_id"], v["x_cm"] / 100.0, v["y_cm"] / 100.0, v["done"], now_us)
+
+    def _task_heartbeat(self, now_us: int) -> None:
+        self._send_heartbeat(self.pose.read())
+
+    def _send_heartbeat(self, pose) -> None:
+        """This robot's pose and status; a newer one replaces one still queued."""
+        self.link.enqueue("pose", {
+            "sender_id": self.hal.robot_id, "x_cm": round(pose.x_m * 100), "y_cm": round(pose.y_m * 100),
+            "yaw_cdeg": round(math.degrees((pose.yaw_rad + math.pi) % (2 * math.pi) - math.pi) * 100),
+            "speed_cmps": min(255, round(abs(pose.v_mps) * 100)) if not self.done else 0,
+            "exploring": int(self.targets.target is not None and not self.done), "done": int(self.done),
+            "returning": 0, "vertex_count": min(len(self.topo), 4095)}, PRIORITY_STATUS, key="pose")
 
     def _task_lidar(self, now_us: int) -> None:
         scan: LidarScan | None = self.hal.lidar.latest_scan()
@@ -207,10 +220,6 @@ class ExplorerAgent:
             self.done = True
             self.status = "complete"
             if self.link is not None:
-                self.link.enqueue("pose", {
-                    "sender_id": self.hal.robot_id, "x_cm": round(pose.x_m * 100), "y_cm": round(pose.y_m * 100),
-                    "yaw_cdeg": round(math.degrees((pose.yaw_rad + math.pi) % (2 * math.pi) - math.pi) * 100),
-                    "speed_cmps": 0, "exploring": 0, "done": 1, "returning": 0,
-                    "vertex_count": min(len(self.topo), 4095)}, PRIORITY_STATUS, key="pose")
+                self._send_heartbeat(pose)
             return
         self.follower.set_path(plan.path_xy)

@@ -98,6 +98,16 @@ class TaskRates:
     control_hz: float = 20.0
     planning_hz: float = 1.0
     radio_hz: float = 20.0
+    # The core heartbeat (where a robot is, whether it is done), for every scheme that talks:
+    # a 12-byte record every 10 s is 1.2 B/s, well inside the 2.9 B/s that one robot may send
+    # in the EU 1 % sub-band (SF7, 12-byte frames); aggregated with other records it costs
+    # less. A teammate not heard of for 3 periods counts as gone.
+    heartbeat_hz: float = 0.1
+    heartbeats_to_age_out: int = 3
+
+    @property
+    def roster_max_age_us(self) -> int:
+        return int(round(self.heartbeats_to_age_out * 1_000_000 / self.heartbeat_hz))
 
     @property
     def tick_period_us(self) -> int:

@@ -187,7 +187,11 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 profiler: TaskProfiler | None = None,
                 params: ExplorationParams = ExplorationParams(),
                 rates: TaskRates = TaskRates(),
-                world_params: WorldParams = WorldParams()) -> MissionResult:
+                world_params: WorldParams = WorldParams(),
+                loss_rule: Callable[[int, int, bytes], bool] | None = None,
+                observer: Callable[[int, list[ExplorerAgent]], None] | None = None) -> MissionResult:
+    """One mission. loss_rule (radio_sim.channel.Channel) loses chosen receptions; observer
+    is called with the mission time and the agents once per simulated second (tests)."""
     occ, start, label = resolve_map(cfg.map_spec)
     poses = start_poses(occ, start, cfg.starts, cfg.robots)
     world = World(occ, poses, cfg.seed, world_params)
@@ -196,7 +200,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     reachable = _reachable_from(occ, poses, robot_radius_m=world_params.robot_radius_m)
     reachable_raw = _reachable_from(occ, poses)
     profile = radio_profile(cfg.radio)
-    channel = Channel(profile, cfg.seed, occupancy=occ)
+    channel = Channel(profile, cfg.seed, occupancy=occ, loss_rule=loss_rule)
     air_frames: list[AirFrame] = []
     channel.add_sink(air_frames.append)
     capture = None
@@ -224,7 +228,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         agents.append(agent)
     try:
         result = _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh,
-                       progress, profiler, rates)
+                       progress, profiler, rates, observer)
         result.coverage_raw = float((world.observed_union() & reachable_raw).sum()) / int(reachable_raw.sum())
         result.start_poses = poses
         return result
@@ -266,7 +270,8 @@ def _reachable_from(occ, poses: list[Pose], robot_radius_m: float | None = None)
     return reachable
 
 
-def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh, progress, profiler, rates):
+def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh, progress, profiler, rates,
+          observer):
     reachable_cells = int(reachable.sum())
 
     tick_us = rates.tick_period_us
@@ -286,6 +291,8 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
                 t_90_us = now
             if progress is not None:
                 progress(now / 1e6, coverage)
+            if observer is not None:
+                observer(now, agents)
             next_sample_us += COVERAGE_SAMPLE_US
         if all(a.done for a in agents) or now >= max_us:
             break

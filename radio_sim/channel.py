@@ -94,8 +94,12 @@ class Channel:
         occupancy: OccupancyMap | None = None,
         propagation: PropagationParams = PropagationParams(),
         faults: FaultParams = FaultParams(),
+        loss_rule: Callable[[int, int, bytes], bool] | None = None,
     ) -> None:
+        """loss_rule(sender id, receiver id, payload): True loses that reception as an
+        injected loss (an experiment's or a test's targeted fault; drawn faults come on top)."""
         self.profile = profile
+        self.loss_rule = loss_rule
         self.seed = int(seed)
         self.occupancy = occupancy
         self.propagation = propagation
@@ -298,7 +302,7 @@ class Channel:
             draw = draw_faults(self.faults, self._fault_rng) if self.faults.any else NO_FAULT
             payload = frame.payload
             if fate == RECEIVED:
-                if draw.lost:
+                if draw.lost or (self.loss_rule is not None and self.loss_rule(frame.sender_id, rid, payload)):
                     fate = INJECTED_LOSS
                 elif draw.corrupted and payload:
                     fate = CORRUPTED

@@ -9,7 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from firmware.params import ExplorationParams
+from firmware.comms.frame import decode_frame
+from firmware.params import ExplorationParams, TaskRates
 from host_tools.mission import WALL_TIME_KEYS, MissionConfig, run_mission
 
 
@@ -81,6 +82,39 @@ def test_a_team_on_a_lora_band_takes_turns_on_the_air(shared_maps):
     assert min(r.radio["deferred_slot"]) > 0 and r.radio["duty_cycle_violations"] == 0
     stats = r.to_json()["explorer_stats"]
     assert all(len(v) == 5 for v in stats.values()) and sum(stats["targets_reached"]) > 0
+
+
+def test_a_finished_robot_whose_done_is_lost_stops_counting_as_active_within_three_heartbeats():
+    """The first robot to finish goes silent just as it says so: its "done" and every frame
+    after it are lost. Its teammates never hear it finish, yet within three heartbeat
+    periods of its last word they stop counting it as exploring (MinPos ranks and the
+    deadlock breaker read only robots counted so)."""
+    rates = TaskRates()
+    silent: dict[str, int] = {}
+
+    def lose_after_done(sender: int, receiver: int, payload: bytes) -> bool:
+        if silent.get("robot") == sender:
+            return True
+        frame = decode_frame(payload).frame
+        if frame is not None and any(r == "pose" and v["done"] for r, v in frame.records) and not silent:
+            silent["robot"] = sender
+            return True
+        return False
+
+    samples = []   # (time, robot, done, teammates it counts as exploring)
+    r = run_mission(MissionConfig(map_spec="cave:4:50x50", robots=5, seed=0, max_sim_s=3000, radio="eu868-g3",
+                                  strategy="minpos"), rates=rates, loss_rule=lose_after_done,
+                    observer=lambda now, agents: samples.extend(
+                        (now, a.hal.robot_id, a.done, set(a.roster.active(now))) for a in agents))
+    assert r.termination == "complete" and "robot" in silent
+    k = silent["robot"]
+    t_done = min(t for t, j, done, _ in samples if j == k and done)
+    others = [(t, active) for t, j, done, active in samples if j != k and not done and t > t_done]
+    age_out = rates.roster_max_age_us
+    assert any(k in active for t, active in others if t < t_done + age_out), "the lost done did matter"
+    late = [active for t, active in others if t > t_done + age_out + 1_000_000]
+    assert late, "some teammate was still exploring three heartbeats later"
+    assert all(k not in active for active in late)
 
 
 def _cli(*args, timeout=600):

@@ -27,27 +27,30 @@ class Roster:
         self._members: dict[int, Member] = {}
 
     def heard_at(self, robot_id: int, x_m: float, y_m: float, now_us: int) -> None:
-        """A record placed the teammate at (x, y) and says it is exploring."""
+        """A record placed the teammate at (x, y) (whether it is done, it did not say)."""
         if robot_id == self.robot_id:
             return
-        self._members[robot_id] = Member(x_m, y_m, now_us, done=False)
+        m = self._members.get(robot_id)
+        self._members[robot_id] = Member(x_m, y_m, now_us, done=m is not None and m.done)
 
-    def heard_done(self, robot_id: int, x_m: float, y_m: float, now_us: int) -> None:
-        """The teammate said it has finished: it explores nothing more."""
+    def heard_status(self, robot_id: int, x_m: float, y_m: float, done: bool, now_us: int) -> None:
+        """A heartbeat: where the teammate is and whether it has finished (for good: a
+        finished robot explores nothing more)."""
         if robot_id == self.robot_id:
             return
-        self._members[robot_id] = Member(x_m, y_m, now_us, done=True)
+        m = self._members.get(robot_id)
+        self._members[robot_id] = Member(x_m, y_m, now_us, done=bool(done) or (m is not None and m.done))
 
-    def _alive(self, m: Member, now_us: int | None) -> bool:
-        return self.max_age_us is None or now_us is None or now_us - m.heard_us <= self.max_age_us
+    def _alive(self, m: Member, now_us: int) -> bool:
+        return self.max_age_us is None or now_us - m.heard_us <= self.max_age_us
 
-    def active(self, now_us: int | None = None) -> dict[int, tuple[float, float]]:
+    def active(self, now_us: int) -> dict[int, tuple[float, float]]:
         """Teammates still exploring, as last heard, by id in ascending order: not done
         and, with aging, heard of within max_age_us of now_us."""
         return {rid: (m.x_m, m.y_m) for rid, m in sorted(self._members.items())
                 if not m.done and self._alive(m, now_us)}
 
-    def any_active(self, now_us: int | None = None) -> bool:
+    def any_active(self, now_us: int) -> bool:
         return bool(self.active(now_us))
 
     def members(self) -> dict[int, Member]:

@@ -93,14 +93,14 @@ class BayerFaigl(Scheme):
         candidates = own + self._team_targets(view.sight)
         if p.shared_view_m > 0:
             self.presence.remember_given_up(self._dropped_this_cycle, view.sight)
-        if not candidates and self.presence.given_up and not self.s.roster.any_active():
+        if not candidates and self.presence.given_up and not self.s.roster.any_active(view.now_us):
             revived = self.presence.revive_shared_frontiers(view.sight)
             self.s.waypoints.items.extend(revived)
             self.presence.revived += len(revived)
             candidates = [Candidate(w.x_m, w.y_m, w.e_bit, False) for w in revived]
         cost_by_window(view, candidates)
         if self.variant == "minpos":
-            self._minpos_ranks(candidates, view.blocked_edges)
+            self._minpos_ranks(candidates, view.blocked_edges, view.now_us)
         return candidates
 
     def _team_targets(self, sight: np.ndarray) -> list[Candidate]:
@@ -132,13 +132,13 @@ class BayerFaigl(Scheme):
         self._places_emptied.extend((float(xy[k, 0]), float(xy[k, 1])) for k in ks[~keep])
         return [Candidate(float(xy[k, 0]), float(xy[k, 1]), 0.0, True) for k in ks[keep]]
 
-    def _minpos_ranks(self, candidates: list[Candidate], blocked_edges: frozenset) -> None:
+    def _minpos_ranks(self, candidates: list[Candidate], blocked_edges: frozenset, now_us: int) -> None:
         """Eq. 6: a target's rank counts the other robots with a shorter topological path
         to it than this robot's."""
         topo = self.s.topo
         for c in candidates:
             c.rank = 0
-        for _rid, (ox, oy) in self.s.roster.active().items():
+        for _rid, (ox, oy) in self.s.roster.active(now_us).items():
             src, dist, _ = topo.costs_from(ox, oy, blocked_edges)
             if src is None:
                 continue
