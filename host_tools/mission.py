@@ -84,6 +84,7 @@ class MissionResult:
     world: object = field(repr=False, default=None)
     agents: list = field(repr=False, default_factory=list)
     reachable: np.ndarray | None = field(repr=False, default=None)
+    air_frames: list[AirFrame] = field(repr=False, default_factory=list)   # every transmission
 
     @property
     def sim_speedup(self) -> float:
@@ -346,4 +347,5 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
         world=world,
         agents=agents,
         reachable=reachable,
+        air_frames=air_frames,
     )

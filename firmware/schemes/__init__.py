@@ -40,12 +40,7 @@ def resolve(spec: str) -> tuple[str, str]:
     """(scheme name, variant) of NAME, NAME:VARIANT or an alias; ValueError naming what is
     unknown. An empty variant means the scheme's default."""
     name, _, variant = ALIASES.get(spec, spec).partition(":")
-    cls = scheme_class(name)
-    variant = variant or cls.default_variant
-    if variant not in cls.variants:
-        raise ValueError(f"scheme {name!r} has no variant {variant!r}; "
-                         f"known: {', '.join(v for v in cls.variants if v) or 'none'}")
-    return name, variant
+    return name, scheme_class(name).checked_variant(variant)
 
 
 def build(spec: str) -> Scheme:
@@ -53,12 +48,13 @@ def build(spec: str) -> Scheme:
     return scheme_class(name)(variant)
 
 
+def specs() -> list[str]:
+    """NAME:VARIANT (or NAME) of every registered scheme and variant."""
+    return [f"{name}:{variant}" if variant else name for name in SCHEMES for variant in scheme_class(name).variants]
+
+
 def catalogue() -> list[tuple[str, str]]:
     """(spec, what it does) for every scheme and variant, and every alias, for --help."""
-    out = []
-    for name in SCHEMES:
-        cls = scheme_class(name)
-        for variant, doc in cls.variants.items():
-            out.append((f"{name}:{variant}" if variant else name, doc))
+    out = [(spec, scheme_class(resolve(spec)[0]).variants[resolve(spec)[1]]) for spec in specs()]
     out.extend((alias, f"= {spec}") for alias, spec in ALIASES.items())
     return out

@@ -92,12 +92,17 @@ class Scheme(ABC):
     needs: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, variant: str = "") -> None:
-        variant = variant or self.default_variant
-        if variant not in self.variants:
-            raise ValueError(f"scheme {self.name!r} has no variant {variant!r}; "
-                             f"known: {', '.join(v for v in self.variants if v) or 'none'}")
-        self.variant = variant
+        self.variant = self.checked_variant(variant)
         self.s: Services | None = None
+
+    @classmethod
+    def checked_variant(cls, variant: str) -> str:
+        """The variant asked for ("" for the default); ValueError naming the known ones."""
+        variant = variant or cls.default_variant
+        if variant not in cls.variants:
+            raise ValueError(f"scheme {cls.name!r} has no variant {variant!r}; "
+                             f"known: {', '.join(v for v in cls.variants if v) or 'none'}")
+        return variant
 
     @property
     def spec(self) -> str:
