@@ -247,16 +247,54 @@ def dijkstra_arrays(rows, cols):
 
 
 @njit(cache=True)
+def _settle_top(traversable, cell_cost, dist, parent, keys, vals, pos, n):
+    """Settle the heap's top cell and relax its neighbours; returns (its flat index, the
+    new heap size). A step costs its length in cells times the mean of the two cells' cost
+    factors, so a path through narrow places pays for hugging walls (Bayer & Faigl IV-A).
+    Diagonal steps may not cut a blocked corner."""
+    rows, cols = traversable.shape
+    s2 = math.sqrt(2.0)
+    dcur = keys[0]
+    flat = vals[0]
+    n = _pop_top(keys, vals, pos, n)
+    i = flat // cols
+    j = flat - i * cols
+    for di in range(-1, 2):
+        for dj in range(-1, 2):
+            if di == 0 and dj == 0:
+                continue
+            ni = i + di
+            nj = j + dj
+            if ni < 0 or nj < 0 or ni >= rows or nj >= cols or not traversable[ni, nj]:
+                continue
+            diagonal = di != 0 and dj != 0
+            if diagonal and not (traversable[i, nj] and traversable[ni, j]):
+                continue
+            step = s2 if diagonal else 1.0
+            nd = dcur + step * 0.5 * (cell_cost[i, j] + cell_cost[ni, nj])
+            if nd < dist[ni, nj]:
+                dist[ni, nj] = nd
+                parent[ni, nj] = flat
+                nflat = ni * cols + nj
+                slot = pos[nflat]
+                if slot == -1:
+                    slot = n
+                    n += 1
+                keys[slot] = nd
+                vals[slot] = nflat
+                _sift_up(keys, vals, pos, slot)
+    return flat, n
+
+
+@njit(cache=True)
 def dijkstra_settle(traversable, cell_cost, dist, parent, keys, vals, pos, size, want_flat):
     """Run the search of dijkstra_start until every cell in want_flat is settled (its dist
     and parent final) or nothing is left to settle; an empty want_flat runs it to the end.
 
-    A step costs its length in cells times the mean of the two cells' cost factors, so a
-    path through narrow places pays for hugging walls (Bayer & Faigl IV-A). Diagonal steps
-    may not cut a blocked corner. The heap orders ties by flat index, so cells settle in
-    the same order however the search is split into calls: a settled cell's dist and parent
-    are those of the full search. It holds each cell at most once (a better cost moves the
-    cell up in place), which keeps it small on open maps.
+    The heap orders ties by flat index, so cells settle in the same order however the
+    search is split into calls (this one, dijkstra_settle_first, dijkstra_settle_below): a
+    settled cell's dist and parent are those of the full search. It holds each cell at
+    most once (a better cost moves the cell up in place), which keeps it small on open maps.
     """
     rows, cols = traversable.shape
     waiting = 0
@@ -268,42 +306,45 @@ def dijkstra_settle(traversable, cell_cost, dist, parent, keys, vals, pos, size,
     wanted = np.zeros(rows * cols, np.bool_)
     for f in want_flat:
         wanted[f] = True
-    s2 = math.sqrt(2.0)
     n = size[0]
     while n > 0:
-        dcur = keys[0]
-        flat = vals[0]
-        n = _pop_top(keys, vals, pos, n)
-        i = flat // cols
-        j = flat - i * cols
-        for di in range(-1, 2):
-            for dj in range(-1, 2):
-                if di == 0 and dj == 0:
-                    continue
-                ni = i + di
-                nj = j + dj
-                if ni < 0 or nj < 0 or ni >= rows or nj >= cols or not traversable[ni, nj]:
-                    continue
-                diagonal = di != 0 and dj != 0
-                if diagonal and not (traversable[i, nj] and traversable[ni, j]):
-                    continue
-                step = s2 if diagonal else 1.0
-                nd = dcur + step * 0.5 * (cell_cost[i, j] + cell_cost[ni, nj])
-                if nd < dist[ni, nj]:
-                    dist[ni, nj] = nd
-                    parent[ni, nj] = flat
-                    nflat = ni * cols + nj
-                    slot = pos[nflat]
-                    if slot == -1:
-                        slot = n
-                        n += 1
-                    keys[slot] = nd
-                    vals[slot] = nflat
-                    _sift_up(keys, vals, pos, slot)
+        flat, n = _settle_top(traversable, cell_cost, dist, parent, keys, vals, pos, n)
         if wanted[flat]:
             waiting -= 1
             if waiting == 0:
                 break
+    size[0] = n
+
+
+@njit(cache=True)
+def dijkstra_settle_first(traversable, cell_cost, dist, parent, keys, vals, pos, size, want_flat):
+    """Run the search until one of the cells in want_flat is settled (at once if one is
+    already) or nothing is left: the nearest of them, in the full search's order. Nothing
+    wanted, nothing settled."""
+    if want_flat.shape[0] == 0:
+        return
+    for f in want_flat:
+        if pos[f] == -2:
+            return
+    rows, cols = traversable.shape
+    wanted = np.zeros(rows * cols, np.bool_)
+    for f in want_flat:
+        wanted[f] = True
+    n = size[0]
+    while n > 0:
+        flat, n = _settle_top(traversable, cell_cost, dist, parent, keys, vals, pos, n)
+        if wanted[flat]:
+            break
+    size[0] = n
+
+
+@njit(cache=True)
+def dijkstra_settle_below(traversable, cell_cost, dist, parent, keys, vals, pos, size, bound):
+    """Run the search while the next cell's cost is at most `bound` (in cells): afterwards
+    every cell whose cost is at most `bound` is settled, and every other cell's exceeds it."""
+    n = size[0]
+    while n > 0 and keys[0] <= bound:
+        _flat, n = _settle_top(traversable, cell_cost, dist, parent, keys, vals, pos, n)
     size[0] = n
 
 

@@ -3,6 +3,7 @@ import math
 
 import numba
 import numpy as np
+import pytest
 from hypothesis import given, settings, strategies as st
 
 from firmware import kernels
@@ -135,6 +136,39 @@ def test_dijkstra_settled_in_parts_equals_the_full_search(free, data):
         np.testing.assert_array_equal(parent[settled], full_parent[settled])
 
 
+@SETTINGS
+@given(grids(), st.data())
+def test_dijkstra_settled_to_the_first_wanted_or_below_a_bound_equals_the_full_search(free, data):
+    """settle_first stops at the nearest wanted cell (in the full search's order);
+    settle_below leaves settled exactly the cells whose full-search cost is within the
+    bound; both agree with the full search at every settled cell."""
+    rows, cols = free.shape
+    trav, cost, si, sj = _search_case(free, data)
+    full_dist, full_parent = kernels.dijkstra_grid(trav, cost, si, sj)
+    arrays = kernels.dijkstra_arrays(rows, cols)
+    kernels.dijkstra_start(trav, si, sj, *arrays)
+    dist, parent, *heap = arrays
+    pos = heap[2].reshape(rows, cols)
+    reach = np.isfinite(full_dist)
+    k = data.draw(st.integers(1, 6))
+    wi = np.array(data.draw(st.lists(st.integers(0, rows - 1), min_size=k, max_size=k)), np.int64)
+    wj = np.array(data.draw(st.lists(st.integers(0, cols - 1), min_size=k, max_size=k)), np.int64)
+    ok = reach[wi, wj]
+    kernels.dijkstra_settle_first(trav, cost, dist, parent, *heap, wi[ok] * cols + wj[ok])
+    if ok.any():
+        nearest = full_dist[wi[ok], wj[ok]].min()
+        assert (pos[wi[ok], wj[ok]] == -2).any()
+        # everything strictly nearer than the nearest wanted cell is settled, nothing farther
+        assert (pos[full_dist < nearest] == -2).all() and not (pos[full_dist > nearest] == -2).any()
+    bound = data.draw(st.floats(0.0, 2.0 * max(rows, cols)))
+    kernels.dijkstra_settle_below(trav, cost, dist, parent, *heap, bound)
+    settled = pos == -2
+    assert settled[full_dist <= bound].all()
+    assert not settled[reach & (full_dist > bound)].any() or ok.any()
+    np.testing.assert_array_equal(dist[settled], full_dist[settled])
+    np.testing.assert_array_equal(parent[settled], full_parent[settled])
+
+
 def _draw_cells(data, shape, k):
     """k cells of a grid of this shape, as (rows, cols) index arrays."""
     rows, cols = shape
@@ -219,5 +253,7 @@ def test_parallel_kernels_give_the_same_bits_on_one_thread_and_on_all(scan, stat
         kernels.mark_visible(state, ci, cj, rays, reach, seen)
         return (filled, *kernels.chamfer_distances(state), kernels.observable_unknown(state, ci, cj, rays, reach), seen)
 
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("NUMBA_NUM_THREADS is 1: nothing to compare (tests/conftest.py asks for two unless it is set)")
     for one, every in zip(_with_threads(1, run), _with_threads(numba.config.NUMBA_NUM_THREADS, run)):
         np.testing.assert_array_equal(one, every)

@@ -9,7 +9,9 @@ stage, in two steps, run by the shared planner (firmware.services.planner):
     filter_waypoints(view)   which of this robot's waypoints it still wants (before this
                              cycle's target outcome is decided)
     rank(view, own)          own candidates in, the ranked candidates it wants out: filter,
-                             add team targets, cost beyond the local window, rank
+                             add team targets, cost beyond the local window, rank (where a
+                             grid path in the local map reaches a candidate, the planner
+                             costs it by that path instead)
 
 Choosing among the ranked candidates, routing and strike keeping stay in the shared
 services. A scheme never touches another scheme's state, and host tools ask it for its
@@ -79,8 +81,7 @@ class PlanningView:
     sight: np.ndarray                       # the local map's sight layer (firmware.kernels states)
     target: Target | None                   # the robot's current target, if any
     blocked_edges: frozenset                # topological edges this robot found crossing walls
-    local_costs: Callable[[list[Candidate]], tuple[np.ndarray, np.ndarray]]
-    graph_costs: Callable[[list[Candidate]], np.ndarray]
+    graph_costs: Callable[[list[Candidate]], np.ndarray]   # metres along the topological graph
 
 
 class Scheme(ABC):
@@ -136,7 +137,8 @@ class Scheme(ABC):
 
     @abstractmethod
     def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
-        """The candidates the robot should choose among, each with cost_m and rank set."""
+        """The candidates the robot should choose among, each with graph_cost_m (its cost
+        beyond the local window) and rank set."""
 
     def after_plan(self, pose: OdometrySample, now_us: int) -> None:
         """After each planning cycle (before a finished robot reports done)."""
@@ -152,11 +154,7 @@ class Scheme(ABC):
         return {}
 
 
-def cost_by_window(view: PlanningView, candidates: list[Candidate]) -> None:
-    """Each candidate's cost: its grid path in the local map where it is reachable there,
-    else its cost along the topological graph (both set on the candidates)."""
-    cost_local, local = view.local_costs(candidates)
-    graph = view.graph_costs(candidates)
-    for c, ok, cl, cg in zip(candidates, local, cost_local, graph):
-        c.graph_cost_m = float(cg)
-        c.cost_m = float(cl) if ok else c.graph_cost_m
+def cost_along_graph(view: PlanningView, candidates: list[Candidate]) -> None:
+    """Each candidate's cost beyond the local window: along the topological graph."""
+    for c, cost in zip(candidates, view.graph_costs(candidates)):
+        c.graph_cost_m = float(cost)

@@ -66,14 +66,34 @@ class GridPaths:
         kernels.dijkstra_start(traversable, start_i, start_j, *arrays)
         self.dist, self.parent, *self._heap = arrays
 
-    def settle(self, i: np.ndarray, j: np.ndarray) -> None:
-        """Make dist and parent final at the cells (i, j) that are reachable."""
+    def _flat(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """Flat indices of the reachable cells among (i, j)."""
         i = np.asarray(i, np.int64)
         j = np.asarray(j, np.int64)
         ok = self.reachable[i, j]
-        if ok.any():
-            kernels.dijkstra_settle(self._traversable, self._cell_cost, self.dist, self.parent, *self._heap,
-                                    i[ok] * self.dist.shape[1] + j[ok])
+        return i[ok] * self.dist.shape[1] + j[ok]
+
+    def settle(self, i: np.ndarray, j: np.ndarray) -> None:
+        """Make dist and parent final at the cells (i, j) that are reachable."""
+        flat = self._flat(i, j)
+        if len(flat):
+            kernels.dijkstra_settle(self._traversable, self._cell_cost, self.dist, self.parent, *self._heap, flat)
+
+    def settle_first(self, i: np.ndarray, j: np.ndarray) -> None:
+        """Settle the search until the nearest reachable cell among (i, j) is final."""
+        flat = self._flat(i, j)
+        if len(flat):
+            kernels.dijkstra_settle_first(self._traversable, self._cell_cost, self.dist, self.parent, *self._heap,
+                                          flat)
+
+    def settle_below(self, bound_cells: float) -> None:
+        """Make final every cell whose cost is at most bound_cells (in cells)."""
+        kernels.dijkstra_settle_below(self._traversable, self._cell_cost, self.dist, self.parent, *self._heap,
+                                      float(bound_cells))
+
+    def settled(self, i: int, j: int) -> bool:
+        """Are the cell's dist and parent final?"""
+        return bool(self._heap[2][i * self.dist.shape[1] + j] == -2)
 
     def path(self, goal_i: int, goal_j: int) -> list[tuple[int, int]]:
         """Cells from the start to a reachable goal."""

@@ -71,24 +71,24 @@ class Planner:
         self._search_arrays = paths.arrays
         reachable = paths.reachable
         self.waypoints.update(self.map, layers.sight, reachable)
-        self._tell(self.targets.end_if_seen_on_way(x_m, y_m), "seen_on_way")
-        graph: list = []    # (source vertex, distances, parents, metres to the source), once known
-        view = self._view(x_m, y_m, now_us, layers.sight, paths, graph)
-        self.scheme.filter_waypoints(view)
-        self._tell(self.targets.end_if_reached(x_m, y_m), "reached")
-
         topo_src, topo_dist, topo_parent = self.topo.costs_from(x_m, y_m, frozenset(self.blocked_edges))
         to_src_m = 0.0
         if topo_src is not None:
             sx, sy = self.topo.positions()[topo_src]
             to_src_m = math.hypot(sx - x_m, sy - y_m)
-        graph.extend((topo_dist, to_src_m))
+
+        self._tell(self.targets.end_if_seen_on_way(x_m, y_m), "seen_on_way")
+        view = self._view(x_m, y_m, now_us, layers.sight, topo_dist, to_src_m)
+        self.scheme.filter_waypoints(view)
+        self._tell(self.targets.end_if_reached(x_m, y_m), "reached")
         view.target = self.targets.target
         own = [Candidate(w.x_m, w.y_m, w.e_bit, False) for w in self.waypoints.items]
         candidates = self.scheme.rank(view, own)
         self.targets.forget_strikes_except(candidates)
+        self._place_in_window(candidates, paths)
 
         while candidates:
+            settle_choice_costs(candidates, paths, self.targets.target, self.p.resolution_m)
             c = self.targets.choose(candidates)
             path = self._route(c, paths, topo_src, topo_dist, topo_parent, x_m, y_m)
             if path is not None:
@@ -105,31 +105,28 @@ class Planner:
         self.targets.target = None
         return Plan(None, np.zeros((0, 2)), not self.targets.strikes_pending())
 
+    def _place_in_window(self, candidates: list[Candidate], paths: GridPaths) -> None:
+        """Candidates a grid path in the local map reaches are costed by that path, the
+        others by the scheme's cost beyond the window. Grid costs are filled in lazily by
+        settle_choice_costs: until then they read inf."""
+        for c in candidates:
+            wi, wj = self.map.cell_of(c.x_m, c.y_m)
+            local = self._in_window(wi, wj) and paths.reachable[wi, wj]
+            c.local_cell = (wi, wj) if local else None
+            c.cost_m = math.inf if local else c.graph_cost_m
+
     def _tell(self, target: Target | None, outcome: str) -> None:
         if target is not None:
             self.scheme.on_target_outcome(target, outcome)
 
-    def _view(self, x_m: float, y_m: float, now_us: int, sight: np.ndarray, paths: GridPaths,
-              graph: list) -> PlanningView:
-        res = self.p.resolution_m
-
-        def local_costs(candidates: list[Candidate]) -> tuple[np.ndarray, np.ndarray]:
-            """Grid path lengths (m) in the local map, and which candidates it reaches."""
-            cells = [self.map.cell_of(c.x_m, c.y_m) for c in candidates]
-            local = [self._in_window(wi, wj) and paths.reachable[wi, wj] for wi, wj in cells]
-            local_ij = np.array([ij for ij, ok in zip(cells, local) if ok], np.int64).reshape(-1, 2)
-            paths.settle(local_ij[:, 0], local_ij[:, 1])
-            cost = np.array([float(paths.dist[wi, wj]) * res if ok else math.inf
-                             for (wi, wj), ok in zip(cells, local)], np.float64)
-            return cost, np.array(local, bool)
-
+    def _view(self, x_m: float, y_m: float, now_us: int, sight: np.ndarray, topo_dist: np.ndarray,
+              to_src_m: float) -> PlanningView:
         def graph_costs(candidates: list[Candidate]) -> np.ndarray:
             """Costs (m) along the topological graph, from the robot's position."""
-            topo_dist, to_src_m = graph
             return self.topo.costs_to(topo_dist, [c.x_m for c in candidates], [c.y_m for c in candidates]) + to_src_m
 
         return PlanningView(x_m, y_m, now_us, sight, self.targets.target, frozenset(self.blocked_edges),
-                            local_costs, graph_costs)
+                            graph_costs)
 
     # --- routes -----------------------------------------------------------------------
     def _route(self, c: Candidate, paths: GridPaths, topo_src, topo_dist, topo_parent,
@@ -164,3 +161,35 @@ class Planner:
             return None  # the only reachable place on the way is where we stand: no progress
         return self._path_xy(paths.path(best[1][0], best[1][1]))
 
+
+def settle_choice_costs(candidates: list[Candidate], paths: GridPaths, target: Target | None,
+                        resolution_m: float) -> None:
+    """Exact costs for every candidate the choice could take, and no more search than that.
+    The choice (TargetKeeper.choose) takes the lowest rank, then the lowest cost, then keeps
+    the current target unless it costs much more. So the search settles the nearest grid
+    candidate of the lowest rank, then every cell up to the cheapest cost of that rank, and
+    the current target's cell; the grid candidates it leaves unsettled all cost more than
+    the cheapest and keep reading inf. The search is Dijkstra's (cells settle in order of
+    cost), so the choice is the one costing every candidate would give."""
+    r0 = min(c.rank for c in candidates)
+    group = [c for c in candidates if c.rank == r0]
+    _read_costs(group, paths, resolution_m)     # settled on the way to an earlier choice
+    waiting = [c for c in group if c.local_cell is not None and not paths.settled(*c.local_cell)]
+    if waiting:
+        paths.settle_first([c.local_cell[0] for c in waiting], [c.local_cell[1] for c in waiting])
+        _read_costs(waiting, paths, resolution_m)
+        bound_m = min(c.cost_m for c in group)
+        # A little above the bound, so that no cost equal to it after rounding is missed.
+        paths.settle_below(bound_m / resolution_m * (1.0 + 1e-9) + 1e-9)
+        _read_costs(waiting, paths, resolution_m)
+    if target is not None:
+        held = [c for c in group if (c.x_m, c.y_m) == (target.x_m, target.y_m) and c.local_cell is not None]
+        if held:
+            paths.settle([c.local_cell[0] for c in held], [c.local_cell[1] for c in held])
+            _read_costs(held, paths, resolution_m)
+
+
+def _read_costs(candidates: list[Candidate], paths: GridPaths, resolution_m: float) -> None:
+    for c in candidates:
+        if c.local_cell is not None and paths.settled(*c.local_cell):
+            c.cost_m = float(paths.dist[c.local_cell]) * resolution_m

@@ -38,8 +38,9 @@ class Candidate:
     e_bit: float
     from_team: bool
     cost_m: float = math.inf        # this robot's cost (local map where it can, else the graph)
-    graph_cost_m: float = math.inf  # this robot's cost on the topological graph
+    graph_cost_m: float = math.inf  # this robot's cost beyond the local window (the scheme's)
     rank: int = 0                   # lower is better; the scheme's ranking, before cost
+    local_cell: tuple[int, int] | None = None   # its local map cell, if a grid path reaches it
 
 
 class TargetKeeper:

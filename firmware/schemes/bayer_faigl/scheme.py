@@ -20,7 +20,7 @@ import numpy as np
 from firmware import kernels
 from firmware.comms.schema import e_inf_bit_to_code
 from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, Candidate, PlanningView, Scheme, Services,
-                                   cost_by_window)
+                                   cost_along_graph)
 from firmware.schemes.bayer_faigl.presence import PresenceRule
 from firmware.services.pose import TravelMilestones
 from firmware.services.targets import REACHED, Target
@@ -98,7 +98,7 @@ class BayerFaigl(Scheme):
             self.s.waypoints.items.extend(revived)
             self.presence.revived += len(revived)
             candidates = [Candidate(w.x_m, w.y_m, w.e_bit, False) for w in revived]
-        cost_by_window(view, candidates)
+        cost_along_graph(view, candidates)
         if self.variant == "minpos":
             self._minpos_ranks(candidates, view.blocked_edges, view.now_us)
         return candidates

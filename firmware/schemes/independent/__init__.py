@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware.schemes.base import Candidate, PlanningView, Scheme, Services, cost_by_window
+from firmware.schemes.base import Candidate, PlanningView, Scheme, Services, cost_along_graph
 from firmware.services.pose import TravelMilestones
 from hal.samples import OdometrySample
 
@@ -28,7 +28,7 @@ class Independent(Scheme):
         self._milestones.mark(pose.x_m, pose.y_m)
 
     def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
-        cost_by_window(view, own)
+        cost_along_graph(view, own)
         return own
 
     def drawables(self) -> dict:
