@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 import tty
 from pathlib import Path
 
@@ -56,9 +57,10 @@ class ScriptedModem(threading.Thread):
     """An RN2483 on a real pty that answers from a script: each `radio rx 0` delivers the
     next scripted line (a frame, `radio_err`, or nothing: the modem then stays silent, as
     with no traffic); commands in `refuse` answer invalid_param, others `ok` or the value a
-    module gives."""
+    module gives. `reply_delay_s` holds every answer back that long, as a module behind a
+    slow UART would (a 255-byte `radio tx` alone is about 90 ms at 57600 baud)."""
 
-    def __init__(self, rx_lines):
+    def __init__(self, rx_lines, reply_delay_s: float = 0.0):
         super().__init__(daemon=True)
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
@@ -67,6 +69,7 @@ class ScriptedModem(threading.Thread):
         self.commands: list[str] = []
         self.refuse: set[str] = set()
         self.stop = threading.Event()
+        self.reply_delay_s = reply_delay_s
 
     def send(self, line):
         os.write(self.master, (line + "\r\n").encode())
@@ -91,6 +94,8 @@ class ScriptedModem(threading.Thread):
                 raw, buf = buf.split(b"\r\n", 1)
                 cmd = raw.decode()
                 self.commands.append(cmd)
+                if self.reply_delay_s:
+                    time.sleep(self.reply_delay_s)
                 if cmd in self.refuse:
                     self.send(P.INVALID_PARAM)
                 elif cmd == P.RADIO_RX_CONTINUOUS:

@@ -4,6 +4,7 @@ SimRadioModem gives on the same seed and the same scripted traffic."""
 from __future__ import annotations
 
 import os
+import time
 
 import pytest
 import serial
@@ -238,3 +239,35 @@ def test_open_serial_radios_and_garbage_on_the_line():
     finally:
         raw.close()
         link.close()
+
+
+def test_no_call_waits_for_a_slow_module():
+    """Every answer of this module takes 100 ms: transmit, busy and poll still return at once
+    (the writer thread waits for the answers), and the frame's fate arrives later."""
+    from tests.doubles import ScriptedModem
+
+    modem = ScriptedModem([], reply_delay_s=0.1)
+    modem.start()
+    radio = Rn2483Modem(modem.path, PROFILE, reply_timeout_s=2.0)     # start-up waits, as it may
+    try:
+        worst_s = 0.0
+        for call in (lambda: radio.transmit(bytes(255)), radio.busy, radio.poll, radio.poll):
+            t0 = time.perf_counter()
+            call()
+            worst_s = max(worst_s, time.perf_counter() - t0)
+        assert worst_s < 0.02, f"a call took {worst_s * 1e3:.1f} ms"
+        assert radio.busy()                        # still sending, as far as the driver knows
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and "radio tx " + "00" * 255 not in modem.commands:
+            time.sleep(0.01)
+        assert "radio tx " + "00" * 255 in modem.commands      # the writer got it out meanwhile
+        modem.send("radio_tx_ok")                  # the frame's end, as the module reports it
+        deadline = time.monotonic() + 5
+        events = ()
+        while time.monotonic() < deadline and not events:
+            radio.wait(0.05)
+            events = radio.poll()
+        assert events == (RadioTxDone(stamp_us=events[0].stamp_us, ok=True),) and not radio.busy()
+    finally:
+        radio.close()
+        modem.close()
