@@ -271,3 +271,33 @@ def test_no_call_waits_for_a_slow_module():
     finally:
         radio.close()
         modem.close()
+
+
+def test_driver_survives_garbage_from_the_module():
+    from tests.doubles import ScriptedModem
+
+    # Each `radio rx 0` of the scripted module ends with one of these reception lines.
+    rng = stream(4, "test.modem_garbage", 0)
+    junk = ["zz", "ABC", "0", "\u00e9\u00ff junk"]    # ("radio_rx  " alone is an empty frame)
+    junk += ["".join(chr(int(c)) for c in rng.integers(32, 0x250, int(rng.integers(1, 40)))) for _ in range(20)]
+    good = "radio_rx  " + b"still here".hex().upper()
+    modem = ScriptedModem(["radio_rx  " + j for j in junk] + [good])
+    modem.start()
+    radio = Rn2483Modem(modem.path, PROFILE)
+    try:
+        frames = []
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and not frames:
+            radio.wait(0.05)
+            frames = [e for e in radio.poll() if isinstance(e, RadioRxFrame)]
+        assert [f.payload for f in frames] == [b"still here"]
+        assert radio.lines_ignored == len(junk)
+        # Noise on the line while no command waits for an answer is counted and dropped.
+        modem.send("\u00e9 noise \x01")
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and radio.lines_ignored == len(junk):
+            time.sleep(0.01)
+        assert radio.lines_ignored == len(junk) + 1 and radio.poll() == ()
+    finally:
+        radio.close()
+        modem.close()

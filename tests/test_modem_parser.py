@@ -376,3 +376,22 @@ def test_profiles_outside_the_modules_bands_are_refused():
         assert on_air_settings(PROFILES[name]).freq_hz == PROFILES[name].freq_hz
     assert on_air_settings(PROFILES["us915"]).pwr_dbm == 20           # the RN2903's top step
     assert on_air_settings(PROFILES["eu868-g3"]).pwr_dbm == 15        # the RN2483's top step
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.text(max_size=80), st.binary(max_size=255))
+def test_the_drivers_line_parser_never_raises_and_reads_what_the_module_prints(text, payload):
+    assert P.parse_rx_line(text) is None or text.startswith("radio_rx ")
+    P.is_async_line(text)
+    rx, _ = configured(node_id=4)
+    rx.command("radio rx 0", 0)
+    [line] = rx.deliver(RadioRxFrame(stamp_us=1, payload=payload, rssi_dbm=-80, snr_db=3), 1)
+    assert P.is_async_line(line) and P.parse_rx_line(line) == payload
+
+
+def test_network_config_uses_each_modules_power_steps():
+    assert "radio set pwr 15" in P.network_config_commands(PROFILES["eu868-g3"], P.RN2483)   # 27 dBm asked
+    assert "radio set pwr 14" in P.network_config_commands(PROFILES["eu868-g1"], P.RN2483)
+    assert "radio set pwr 20" in P.network_config_commands(PROFILES["us915"], P.RN2903)
+    assert P.model_of_version("RN2903 1.0.5 Nov 06 2018 10:45:27") is P.RN2903
+    assert P.model_of_version("RN2483X") is None and P.model_for_freq(433_050_000) is P.RN2483
