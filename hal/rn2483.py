@@ -136,6 +136,8 @@ class Rn2483Modem:
                                               stopbits=1, timeout=None, write_timeout=reply_timeout_s)
         except (serial.SerialException, ValueError) as e:
             raise Rn2483Error(f"{url_or_path}: cannot open: {e}") from e
+        # Whatever the module said before we opened the port is nobody's answer.
+        self._ser.reset_input_buffer()
         self._reader = serial.threaded.ReaderThread(self._ser, lambda: _Lines(self))
         self._reader.start()
         self._writer = threading.Thread(target=self._write_loop, name=f"rn2483-writer {url_or_path}", daemon=True)
@@ -148,7 +150,6 @@ class Rn2483Modem:
 
     # -- start-up (blocking: before the firmware runs) ------------------------------------
     def _start(self, profile: RadioProfile, sync_word: int, reset_timeout_s: float, configure: bool) -> None:
-        self._ser.reset_input_buffer()
         if configure:
             self._expect(P.SYS_RESET, lambda r: P.model_of_version(r) is not None,
                          "a version line 'RN2483 ...' or 'RN2903 ...'", timeout_s=reset_timeout_s)
@@ -173,7 +174,7 @@ class Rn2483Modem:
         if self._transmitting or len(payload) > self._max_payload:
             return False
         if self._receiving:
-            self._send(P.RADIO_RXSTOP, self._expect_ok)
+            self._send(P.RADIO_RXSTOP, self._rx_stopped)
             self._receiving = False
         self._send(P.radio_tx(payload), self._tx_answered)
         self._transmitting = True
@@ -268,7 +269,8 @@ class Rn2483Modem:
         if line.startswith(P.RADIO_RX_PREFIX.rstrip() + " "):
             self._receiving = False
             if P.parse_rx_line(line) is None:
-                self.lines_ignored += 1    # the reader made no entry for it either
+                with self._lock:
+                    self.lines_ignored += 1    # the reader made no entry for it either
                 return
             entry = self._pending_rx.popleft()
             entry.stamp_us = self._now_us()
@@ -281,7 +283,8 @@ class Rn2483Modem:
         elif self._receiving:
             self._receiving = False        # the watchdog or the window ended the reception
         else:
-            self.lines_ignored += 1
+            with self._lock:
+                self.lines_ignored += 1
 
     def _tx_answered(self, reply: str | None) -> None:
         if reply == P.OK:
@@ -298,9 +301,9 @@ class Rn2483Modem:
             if reply != P.BUSY:
                 self._note_error(P.RADIO_RX_CONTINUOUS, reply)
 
-    def _expect_ok(self, reply: str | None) -> None:
+    def _rx_stopped(self, reply: str | None) -> None:
         if reply != P.OK:
-            self._note_error("command", reply)
+            self._note_error(P.RADIO_RXSTOP, reply)
 
     def _expect_version(self, reply: str | None) -> None:
         if reply is None or P.model_of_version(reply) is None:
