@@ -17,8 +17,9 @@ Model (LoRaSim, Bor et al. 2016, `full_collision` mode; ns-3 lorawan):
   weaker is lost (capture). An interferer below the receiver's sensitivity is ignored.
 - Fates at a receiver, first match wins: half_duplex (the receiver transmitted during any
   part of the frame), out_of_range (RSSI below sensitivity), not_listening (not armed, or
-  armed for another frequency/SF/BW/sync word/IQ polarity, when the frame started), collided, not_listening (armed at the start but disarmed before the
-  end: another frame was delivered first, or the receiver was stopped), then injected
+  armed for another frequency/SF/BW/sync word/IQ polarity, when the frame started),
+  collided, not_listening (armed at the start but disarmed before the end: another frame
+  was delivered first, or the receiver was stopped), then injected
   faults (injected_loss, corrupted), else received.
 - Reception is one-shot like the RN2483's `radio rx 0`: a delivered frame (received or
   corrupted) disarms the receiver until `set_listening(node, True)`. Transmitting disarms it
