@@ -165,8 +165,11 @@ class Rn2483Modem:
             for cmd in commands:
                 self._expect(cmd, lambda r: r == P.OK, f"'{P.OK}'")
         self._arm_rx()
+        # Listening when the constructor returns, as a caller expects of a radio it just opened.
         if self._lockstep:
             self.sync()
+        else:
+            self.settle()
 
     # -- RadioModem -----------------------------------------------------------------
     def transmit(self, payload: bytes) -> bool:

@@ -56,17 +56,20 @@ def _configure(lib, settings):
 
 
 def _receive_with(lib, sender, payload_hex: str, timeout_s: float = 20.0) -> str | None:
-    """`recv_p2p` on `lib` (it blocks in `radio rx 0` until a line comes) while `sender`
-    transmits once; the hex it received, or None if it got `radio_err`."""
-    t, box = _in_thread(lib.recv_p2p)
-    time.sleep(0.3)                  # let the receiver's `radio rx 0` arrive first
+    """`lib` listens (`radio rx 0`, answered before the sender keys up, so no sleep decides
+    the race) while `sender` transmits once with `send_p2p`; the hex `lib` received, or None
+    if its reception ended in `radio_err`."""
+    assert lib.serial_sr("radio rx", "0") == "ok"
+    t, box = _in_thread(lib.serial_r)            # the line that ends the reception
     sender.send_p2p(payload_hex)
     t.join(timeout=timeout_s)
-    assert not t.is_alive(), "recv_p2p never returned"
+    assert not t.is_alive(), "no line ended the reception"
     assert "error" not in box, box.get("error")
-    # recv_p2p returns the line from its 9th character on: the hex after `radio_rx  `, or
-    # "r" for `radio_err`.
-    return None if box["value"] == P.RADIO_ERR[8:] else box["value"]
+    line = box["value"]
+    if line == P.RADIO_ERR:
+        return None
+    assert line.startswith(P.RADIO_RX_PREFIX.rstrip() + " "), line
+    return line[len(P.RADIO_RX_PREFIX):]
 
 
 def test_loranode_sets_every_radio_parameter_and_two_libraries_talk_with_those_settings():
