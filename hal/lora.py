@@ -10,6 +10,10 @@ from dataclasses import dataclass
 from fractions import Fraction
 from math import ceil
 
+# DESIGN.md: the network uses a private LoRa sync word, not LoRaWAN's public 0x34, so robots
+# do not decode (or get woken by) LoRaWAN traffic on the same channel.
+PRIVATE_SYNC_WORD = 0x12
+
 
 @dataclass(frozen=True)
 class LoraModulation:
@@ -58,6 +62,64 @@ def time_on_air_us(payload_bytes: int, mod: LoraModulation) -> int:
 
 
 @dataclass(frozen=True)
+class AirInterface:
+    """What one transmitter sends with, or one receiver listens for: the settings that decide
+    who hears whom on a shared channel.
+
+    A receiver decodes a frame when their `reception_key`s are equal: same modulation, centre
+    frequency, and for LoRa the same SF, bandwidth, sync word and IQ polarity. Coding rate and
+    CRC presence are not in the key: with the explicit header (the only mode the RN2483
+    offers) they travel in the frame's header and a receiver follows them, as real modules
+    do. Frames whose `interference_key`s are equal overlap in frequency and chirp rate and so
+    can collide, whatever their sync words (spreading factors are taken as orthogonal, as in
+    LoRaSim). FSK (`fsk_bitrate_bps` set) keys on frequency, bit rate and sync word.
+    """
+
+    freq_hz: int
+    modulation: LoraModulation = LoraModulation()
+    sync_word: int = PRIVATE_SYNC_WORD
+    iq_inverted: bool = False
+    fsk_bitrate_bps: int | None = None     # None: LoRa
+    fsk_rx_bw_hz: int = 25_000             # FSK receiver bandwidth (noise bandwidth)
+    fsk_sync_bytes: int = 1                # FSK sync word length on the air
+
+    @property
+    def is_lora(self) -> bool:
+        return self.fsk_bitrate_bps is None
+
+    def reception_key(self) -> tuple:
+        if self.is_lora:
+            m = self.modulation
+            return ("lora", self.freq_hz, m.sf, m.bw_hz, self.sync_word, self.iq_inverted)
+        return ("fsk", self.freq_hz, self.fsk_bitrate_bps, self.sync_word, self.fsk_sync_bytes)
+
+    def interference_key(self) -> tuple:
+        if self.is_lora:
+            return ("lora", self.freq_hz, self.modulation.sf, self.modulation.bw_hz)
+        return ("fsk", self.freq_hz)
+
+    @property
+    def noise_bw_hz(self) -> int:
+        return self.modulation.bw_hz if self.is_lora else self.fsk_rx_bw_hz
+
+    def airtime_us(self, payload_bytes: int) -> int:
+        if self.is_lora:
+            return time_on_air_us(payload_bytes, self.modulation)
+        # FSK packet (SX127x packet mode, variable length): preamble bytes, sync word, length
+        # byte, payload, CRC-16 when on.
+        m = self.modulation
+        frame_bytes = m.preamble_symbols + self.fsk_sync_bytes + 1 + payload_bytes + (2 if m.crc_on else 0)
+        return -(-frame_bytes * 8 * 1_000_000 // self.fsk_bitrate_bps)
+
+    def preamble_grace_us(self, symbols_needed: int) -> Fraction:
+        """How much of the start of a frame an earlier frame may overlap and the frame still
+        be caught: LoRa receivers lock on the last `symbols_needed` preamble symbols."""
+        if not self.is_lora:
+            return Fraction(0)
+        return max(self.modulation.preamble_symbols - symbols_needed, 0) * self.modulation.symbol_time_us
+
+
+@dataclass(frozen=True)
 class RadioProfile:
     """A named operating point: where on the band, how fast, and what the law allows."""
 
@@ -79,6 +141,10 @@ class RadioProfile:
             assert self.byte_rate_cap_Bps is not None
             return round(payload_bytes * 1_000_000 / self.byte_rate_cap_Bps)
         return time_on_air_us(payload_bytes, self.modulation)
+
+    def air_interface(self, sync_word: int = PRIVATE_SYNC_WORD) -> AirInterface:
+        """The network's operating point on this profile."""
+        return AirInterface(self.freq_hz, self.modulation, sync_word, False)
 
 
 PROFILES: dict[str, RadioProfile] = {

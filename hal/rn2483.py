@@ -1,150 +1,205 @@
-"""RadioModem backend for a Microchip RN2483 (or the virtual one) over a serial line.
+"""RadioModem backend for a Microchip RN2483 or RN2903 (or the virtual one) over a serial line.
 
 Opens anything pyserial's serial_for_url opens: a device path, `loop://`, `socket://`.
-The firmware calls transmit/busy/poll from its tick, so nothing here waits for the air:
-a call waits at most for the module's immediate answer to a command (`ok`, a value),
-bounded by `reply_timeout_s`.
 
-Line handling: the module prints asynchronous lines (`radio_rx  <HEX>`, `radio_tx_ok`,
-`radio_err`) between the answers to commands. Every line read, while waiting for an
-answer or while polling, goes through one classifier; asynchronous ones are queued as
-events in the order they arrived, so an answer is never mistaken for an event or the
-other way round.
+No firmware call waits on the UART. The port is served by two threads of its own:
+- a reader (pyserial's `serial.threaded.ReaderThread` with a `LineReader`) that splits the
+  byte stream into lines and sorts each one: the module's asynchronous lines (`radio_rx
+  <HEX>`, `radio_tx_ok`, `radio_err`) and the answers to commands go, in the order they
+  arrived, into an inbox;
+- a writer that takes commands from a queue and sends them one at a time, each after the
+  module answered the one before (the module has a small UART buffer and answers in
+  order, so this is how every driver talks to it).
+`transmit`, `busy` and `poll` only queue commands and apply what the inbox holds, so they
+return in microseconds whatever the baud rate: a 255-byte `radio tx` takes about 90 ms on
+the wire at 57600 baud, on the writer's time. `transmit` answers from what the driver
+knows (a frame of its own still on the air, a payload too long); a refusal the module
+gives later (`busy`, `invalid_param`) comes back as a failed RadioTxDone.
 
-`sync_poll=True` is for the lockstep simulator (radio_sim.virtual_modem.ModemBank):
-poll() and busy() end with a `sys get ver` barrier and read up to its answer, so every
-line the modem wrote before (all events up to the simulation time) has been read, no
-matter when the kernel hands pty bytes over. On real hardware leave it off: poll() then
-only takes what has already arrived.
+The rssi and snr of a received frame are asked for (`radio get rssi/snr`) by the reader as
+soon as the `radio_rx` line arrives; the frame is handed to the firmware once both answers
+are in, in its place among the other events.
+
+Lockstep (`lockstep=True`, for radio_sim.virtual_modem): the inbox is applied only in
+`sync()`, which the simulation runner calls between firmware ticks, never during one.
+`sync()` sends a barrier (`sys get ver`) and returns once its answer and every answer
+queued before or because of it are in: every line the modem wrote up to the simulation's
+current time has then been read and applied, whatever the kernel's scheduling of pty
+bytes, and nothing changes until the next tick's commands. So the firmware sees exactly
+what the in-process modem shows it, tick by tick. On real hardware leave it off: every
+call then applies whatever has arrived.
 
 What the firmware sees differs from the in-process modem in two documented ways, both
-because a real module reports no more: RSSI and SNR are whole dB (`radio get rssi/snr`,
-asked right after each `radio_rx`), and an event's stamp_us is the clock time the line was
-read (in lockstep, the first tick at or after the frame's end), not the frame's end.
+because a real module reports no more: RSSI and SNR are whole dB (`radio get rssi/snr`),
+and an event's stamp_us is the clock time its line was applied (in lockstep, the first
+tick at or after the frame's end), not the frame's end.
 """
 from __future__ import annotations
 
+import collections
+import queue
+import threading
 import time
+from dataclasses import dataclass, field
+from typing import Callable
 
 import serial
+import serial.threaded
 
+from hal import rn2483_protocol as P
 from hal.interfaces import Clock
-from hal.lora import PROFILES, RadioProfile
+from hal.lora import PRIVATE_SYNC_WORD, PROFILES, RadioProfile
 from hal.samples import RadioEvent, RadioRxFrame, RadioTxDone
-
-MODULE_MAX_PAYLOAD_BYTES = 255
-MODULE_MAX_PWR_DBM = 15          # the RN2483's highest `radio set pwr`
-PRIVATE_SYNC_WORD = 0x12
-
-_TX_OK = "radio_tx_ok"
-_RADIO_ERR = "radio_err"
-_RX_PREFIX = "radio_rx"
 
 
 class Rn2483Error(RuntimeError):
     """The module answered a command wrongly or not at all."""
 
 
+@dataclass(eq=False)
+class _Command:
+    text: str
+    # Called with the answer (None: no answer in time) when the inbox is applied, in stream order.
+    on_reply: Callable[[str | None], None] | None = None
+    timeout_s: float | None = None         # None: the modem's reply timeout
+    reply: str | None = None
+    done: threading.Event = field(default_factory=threading.Event)
+
+
+@dataclass(eq=False)
+class _RxEntry:
+    """A received frame waiting for its `radio get rssi` and `radio get snr` answers."""
+
+    payload: bytes
+    stamp_us: int | None = None
+    rssi: str | None = None
+    snr: str | None = None
+    answers: int = 0
+
+
+class _Lines(serial.threaded.LineReader):
+    TERMINATOR = b"\r\n"
+    ENCODING = "ascii"
+    UNICODE_HANDLING = "replace"
+
+    def __init__(self, modem: Rn2483Modem):
+        super().__init__()
+        self._modem = modem
+
+    def handle_line(self, line: str) -> None:
+        self._modem._on_line(line)
+
+    def connection_lost(self, exc) -> None:
+        self._modem._on_connection_lost(exc)
+
+
 class Rn2483Modem:
-    """hal.interfaces.RadioModem over the RN2483 radio command set."""
+    """hal.interfaces.RadioModem over the RN2483 / RN2903 radio command set."""
 
     def __init__(self, url_or_path: str, profile: RadioProfile = PROFILES["eu868-g3"],
-                 clock: Clock | None = None, *, baudrate: int = 57600,
+                 clock: Clock | None = None, *, baudrate: int = P.BAUDRATE,
                  reply_timeout_s: float = 2.0, reset_timeout_s: float = 3.0,
-                 sync_word: int = PRIVATE_SYNC_WORD, sync_poll: bool = False):
+                 sync_word: int = PRIVATE_SYNC_WORD, configure: bool = True, lockstep: bool = False):
         m = profile.modulation
         # (An ideal profile is configured by its nominal modulation; the simulated Channel
         # then times frames by the profile's byte-rate cap.)
-        if m.implicit_header or not 7 <= m.sf <= 12:
-            raise ValueError(f"profile {profile.name!r} cannot be configured on an RN2483 "
+        if m.implicit_header or m.sf not in P.SF_VALUES:
+            raise ValueError(f"profile {profile.name!r} cannot be configured on an RN2483 or RN2903 "
                              f"(sf={m.sf}, implicit_header={m.implicit_header})")
         self.profile = profile
         self.port_name = url_or_path
         self._clock = clock
         self._t0_ns = time.monotonic_ns()
         self._reply_timeout_s = reply_timeout_s
-        self._sync_poll = sync_poll
-        self._max_payload = min(MODULE_MAX_PAYLOAD_BYTES, profile.max_payload_bytes)
-        self._rx_buf = bytearray()
-        self._pending: list[tuple] = []        # ("rx", hex, stamp) / ("tx", ok, stamp); stamp = clock time the line was read
+        self._lockstep = lockstep
+        self._max_payload = min(P.MAX_LORA_PAYLOAD_BYTES, profile.max_payload_bytes)
+        # Firmware-side state; touched only by the calling thread (transmit/busy/poll/sync).
         self._transmitting = False
         self._receiving = False
-        self.lines_ignored = 0                 # unexpected or malformed lines, for diagnostics
+        self._events: collections.deque = collections.deque()   # RadioEvent or _RxEntry, in order
+        self._pending_rx: collections.deque = collections.deque()  # _RxEntry per radio_rx line in the inbox
+        # Shared with the I/O threads.
+        self._lock = threading.Lock()
+        self._changed = threading.Condition(self._lock)
+        self._inbox: collections.deque = collections.deque()    # ("line", str) / ("reply", cmd, reply)
+        self._commands: queue.Queue[_Command | None] = queue.Queue()
+        self._in_flight: _Command | None = None
+        self._outstanding = 0              # commands queued and not yet answered (or timed out)
+        self._closed = False
+        self._io_error: BaseException | None = None
+        self.lines_ignored = 0             # unexpected or malformed lines, for diagnostics
+        self.command_errors: list[str] = []    # commands the module refused after start-up
+        self.version = ""
+        self.model: P.ModuleModel | None = None
         try:
-            self._ser = serial.serial_for_url(url_or_path, baudrate=baudrate, bytesize=8,
-                                              parity="N", stopbits=1,
-                                              timeout=reply_timeout_s, write_timeout=reply_timeout_s)
+            self._ser = serial.serial_for_url(url_or_path, baudrate=baudrate, bytesize=8, parity="N",
+                                              stopbits=1, timeout=None, write_timeout=reply_timeout_s)
         except (serial.SerialException, ValueError) as e:
             raise Rn2483Error(f"{url_or_path}: cannot open: {e}") from e
+        # Whatever the module said before we opened the port is nobody's answer.
+        self._ser.reset_input_buffer()
+        self._reader = serial.threaded.ReaderThread(self._ser, lambda: _Lines(self))
+        self._reader.start()
+        self._writer = threading.Thread(target=self._write_loop, name=f"rn2483-writer {url_or_path}", daemon=True)
+        self._writer.start()
         try:
-            self._start(m, profile, sync_word, reset_timeout_s)
+            self._start(profile, sync_word, reset_timeout_s, configure)
         except BaseException:
-            self._ser.close()
+            self.close()
             raise
 
-    # -- start-up -------------------------------------------------------------------
-    def _start(self, m, profile: RadioProfile, sync_word: int, reset_timeout_s: float) -> None:
-        self._ser.reset_input_buffer()
-        self._expect("sys reset", lambda r: r.startswith("RN2483"), "a version line 'RN2483 ...'",
-                     timeout_s=reset_timeout_s)
-        self.version = self._expect("sys get ver", lambda r: r.startswith("RN2483"), "a version line 'RN2483 ...'")
-        self._expect("mac pause", str.isdigit, "the pause length in ms")
-        pwr = max(-3, min(MODULE_MAX_PWR_DBM, round(profile.tx_power_dbm)))
-        for cmd in ("radio set mod lora",
-                    f"radio set freq {profile.freq_hz}",
-                    f"radio set sf sf{m.sf}",
-                    f"radio set bw {m.bw_hz // 1000}",
-                    f"radio set cr 4/{4 + m.cr}",
-                    f"radio set pwr {pwr}",
-                    f"radio set crc {'on' if m.crc_on else 'off'}",
-                    f"radio set sync {sync_word:02X}",
-                    f"radio set prlen {m.preamble_symbols}",
-                    "radio set wdt 0"):
-            self._expect(cmd, lambda r: r == "ok", "'ok'")
+    # -- start-up (blocking: before the firmware runs) ------------------------------------
+    def _start(self, profile: RadioProfile, sync_word: int, reset_timeout_s: float, configure: bool) -> None:
+        if configure:
+            self._expect(P.SYS_RESET, lambda r: P.model_of_version(r) is not None,
+                         "a version line 'RN2483 ...' or 'RN2903 ...'", timeout_s=reset_timeout_s)
+        self.version = self._expect(P.SYS_GET_VER, lambda r: P.model_of_version(r) is not None,
+                                    "a version line 'RN2483 ...' or 'RN2903 ...'")
+        self.model = P.model_of_version(self.version)
+        self._expect(P.MAC_PAUSE, str.isdigit, "the pause length in ms")
+        if configure:
+            try:
+                commands = P.network_config_commands(profile, self.model, sync_word)
+            except ValueError as e:
+                raise Rn2483Error(f"{self.port_name}: {e}") from None
+            for cmd in commands:
+                self._expect(cmd, lambda r: r == P.OK, f"'{P.OK}'")
         self._arm_rx()
+        # Listening when the constructor returns, as a caller expects of a radio it just opened.
+        if self._lockstep:
+            self.sync()
+        else:
+            self.settle()
 
     # -- RadioModem -----------------------------------------------------------------
     def transmit(self, payload: bytes) -> bool:
-        if self._sync_poll and self._transmitting:
-            self._barrier()   # the radio_tx_ok of a frame that ended by now must be seen
-        else:
-            self._drain()
+        self._apply_if_free_running()
         if self._transmitting or len(payload) > self._max_payload:
             return False
         if self._receiving:
-            reply = self._command("radio rxstop")
-            if reply != "ok":
-                raise Rn2483Error(f"{self.port_name}: command 'radio rxstop' answered {reply!r}, expected 'ok'")
+            self._send(P.RADIO_RXSTOP, self._rx_stopped)
             self._receiving = False
-        reply = self._command("radio tx " + payload.hex().upper())
-        if reply == "ok":
-            self._transmitting = True
-            return True
-        if reply in ("busy", "invalid_param"):
-            return False
-        raise Rn2483Error(f"{self.port_name}: command 'radio tx' answered {reply!r}, expected 'ok', 'busy' or 'invalid_param'")
+        self._send(P.radio_tx(payload), self._tx_answered)
+        self._transmitting = True
+        return True
 
     def busy(self) -> bool:
-        if self._sync_poll:
-            self._barrier()
-        else:
-            self._drain()
+        self._apply_if_free_running()
         return self._transmitting
 
     def poll(self) -> tuple[RadioEvent, ...]:
-        if self._sync_poll:
-            self._barrier()
-        else:
-            self._drain()
+        self._apply_if_free_running()
         events: list[RadioEvent] = []
-        while self._pending:
-            item = self._pending.pop(0)
-            if item[0] == "tx":
-                events.append(RadioTxDone(stamp_us=item[2], ok=item[1]))
-            elif item[0] == "rx":
-                frame = self._rx_frame(item[1], item[2])
-                if frame is not None:
-                    events.append(frame)
+        while self._events:
+            head = self._events[0]
+            if isinstance(head, _RxEntry):
+                if head.answers < 2:
+                    break                  # its rssi/snr are on their way; keep the order
+                events.append(RadioRxFrame(stamp_us=head.stamp_us, payload=head.payload,
+                                           rssi_dbm=_number(head.rssi), snr_db=_number(head.snr)))
+            else:
+                events.append(head)
+            self._events.popleft()
         # Reception is one-shot on the module: listen again right away, as the in-process
         # backend does after each poll.
         if not self._transmitting and not self._receiving:
@@ -152,104 +207,226 @@ class Rn2483Modem:
         return tuple(events)
 
     def close(self) -> None:
-        self._ser.close()
+        with self._lock:
+            if self._closed:
+                return
+            if self._receiving and self._io_error is None:
+                # Leave the module idle (best effort: nobody waits for the answer).
+                self._queue_locked(_Command(P.RADIO_RXSTOP))
+            self._closed = True
+        self._commands.put(None)
+        self._writer.join(timeout=self._reply_timeout_s + 1.0)
+        self._reader.close()
 
-    # -- internals ------------------------------------------------------------------
+    # -- host-side helpers (not part of the HAL contract) ---------------------------
+    def sync(self, timeout_s: float | None = None) -> None:
+        """Lockstep barrier: see the module docstring. Raises Rn2483Error if the module does
+        not answer within `timeout_s` (default: the reply timeout)."""
+        timeout_s = self._reply_timeout_s if timeout_s is None else timeout_s
+        self._send(P.SYS_GET_VER, self._expect_version)
+        self.settle(timeout_s)
+
+    def settle(self, timeout_s: float | None = None) -> None:
+        """Wait until every command queued so far is answered, then apply what arrived."""
+        timeout_s = self._reply_timeout_s if timeout_s is None else timeout_s
+        deadline = time.monotonic() + timeout_s
+        with self._changed:
+            while self._outstanding and self._io_error is None:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise Rn2483Error(f"{self.port_name}: {self._outstanding} command(s) unanswered "
+                                      f"after {timeout_s:g} s")
+                self._changed.wait(remaining)
+        self._raise_io_error()
+        self._apply()
+
+    def wait(self, timeout_s: float) -> bool:
+        """Block until something arrived from the module or `timeout_s` passed (for host
+        tools that have nothing else to do, such as the live inspector). True if something
+        arrived."""
+        with self._changed:
+            if not self._inbox:
+                self._changed.wait(timeout_s)
+            return bool(self._inbox)
+
+    # -- firmware-side state --------------------------------------------------------
+    def _apply_if_free_running(self) -> None:
+        if not self._lockstep:
+            self._raise_io_error()
+            self._apply()
+
+    def _apply(self) -> None:
+        """Apply what the reader put in the inbox, in stream order."""
+        with self._lock:
+            items = list(self._inbox)
+            self._inbox.clear()
+        for kind, *rest in items:
+            if kind == "reply":
+                cmd, reply = rest
+                if cmd.on_reply is not None:
+                    cmd.on_reply(reply)
+            else:
+                self._async_line(rest[0])
+
+    def _async_line(self, line: str) -> None:
+        if line.startswith(P.RADIO_RX_PREFIX.rstrip() + " "):
+            self._receiving = False
+            if P.parse_rx_line(line) is None:
+                with self._lock:
+                    self.lines_ignored += 1    # the reader made no entry for it either
+                return
+            entry = self._pending_rx.popleft()
+            entry.stamp_us = self._now_us()
+            self._events.append(entry)
+            return
+        stamp = self._now_us()
+        if self._transmitting:
+            self._transmitting = False
+            self._events.append(RadioTxDone(stamp_us=stamp, ok=line == P.RADIO_TX_OK))
+        elif self._receiving:
+            self._receiving = False        # the watchdog or the window ended the reception
+        else:
+            with self._lock:
+                self.lines_ignored += 1
+
+    def _tx_answered(self, reply: str | None) -> None:
+        if reply == P.OK:
+            return
+        # Refused (busy, invalid_param) or unanswered: the frame never went out.
+        self._note_error("radio tx", reply)
+        if self._transmitting:
+            self._transmitting = False
+            self._events.append(RadioTxDone(stamp_us=self._now_us(), ok=False))
+
+    def _rx_armed(self, reply: str | None) -> None:
+        if reply != P.OK:
+            self._receiving = False        # tried again at the next poll
+            if reply != P.BUSY:
+                self._note_error(P.RADIO_RX_CONTINUOUS, reply)
+
+    def _rx_stopped(self, reply: str | None) -> None:
+        if reply != P.OK:
+            self._note_error(P.RADIO_RXSTOP, reply)
+
+    def _expect_version(self, reply: str | None) -> None:
+        if reply is None or P.model_of_version(reply) is None:
+            self._note_error(P.SYS_GET_VER, reply)
+
+    def _note_error(self, what: str, reply: str | None) -> None:
+        self.command_errors.append(f"{what}: {'no answer' if reply is None else repr(reply)}")
+
+    def _arm_rx(self) -> None:
+        self._send(P.RADIO_RX_CONTINUOUS, self._rx_armed)
+        self._receiving = True
+
     def _now_us(self) -> int:
         if self._clock is not None:
             return self._clock.now_us()
         return (time.monotonic_ns() - self._t0_ns) // 1000
 
-    def _arm_rx(self) -> None:
-        reply = self._command("radio rx 0")
-        if reply == "ok":
-            self._receiving = True
-        elif reply != "busy":
-            raise Rn2483Error(f"{self.port_name}: command 'radio rx 0' answered {reply!r}, expected 'ok'")
+    def _raise_io_error(self) -> None:
+        if self._io_error is not None:
+            raise Rn2483Error(f"{self.port_name}: serial line lost: {self._io_error!r}") from self._io_error
 
-    def _rx_frame(self, hex_text: str, stamp_us: int) -> RadioRxFrame | None:
-        try:
-            payload = bytes.fromhex(hex_text)
-        except ValueError:
-            self.lines_ignored += 1
-            return None
-        rssi = self._query_int("radio get rssi")
-        snr = self._query_int("radio get snr")
-        return RadioRxFrame(stamp_us=stamp_us, payload=payload, rssi_dbm=float(rssi), snr_db=float(snr))
+    # -- commands -------------------------------------------------------------------
+    def _send(self, text: str, on_reply: Callable[[str | None], None] | None = None,
+              timeout_s: float | None = None) -> _Command:
+        cmd = _Command(text, on_reply, timeout_s=timeout_s)
+        with self._lock:
+            if self._closed:
+                raise Rn2483Error(f"{self.port_name}: closed")
+            self._queue_locked(cmd)
+        return cmd
 
-    def _query_int(self, cmd: str) -> int:
-        reply = self._command(cmd)
-        try:
-            return int(reply)
-        except ValueError:
-            raise Rn2483Error(f"{self.port_name}: command {cmd!r} answered {reply!r}, expected an integer") from None
+    def _queue_locked(self, cmd: _Command) -> None:
+        self._outstanding += 1
+        self._commands.put(cmd)
 
-    def _barrier(self) -> None:
-        reply = self._command("sys get ver")
-        if not reply.startswith("RN2483"):
-            raise Rn2483Error(f"{self.port_name}: command 'sys get ver' answered {reply!r}, expected 'RN2483 ...'")
+    def _expect(self, text: str, good, what: str, timeout_s: float | None = None) -> str:
+        """Send one command and wait for its answer (start-up only)."""
+        timeout_s = self._reply_timeout_s if timeout_s is None else timeout_s
+        cmd = self._send(text, timeout_s=timeout_s)
+        if not cmd.done.wait(timeout_s + 1.0):
+            raise Rn2483Error(f"{self.port_name}: command {text!r}: no answer within {timeout_s:g} s")
+        self._raise_io_error()
+        if cmd.reply is None:
+            raise Rn2483Error(f"{self.port_name}: command {text!r}: no answer within {timeout_s:g} s")
+        if not good(cmd.reply):
+            raise Rn2483Error(f"{self.port_name}: command {text!r} answered {cmd.reply!r}, expected {what}")
+        return cmd.reply
 
-    def _expect(self, cmd: str, good, what: str, timeout_s: float | None = None) -> str:
-        reply = self._command(cmd, timeout_s)
-        if not good(reply):
-            raise Rn2483Error(f"{self.port_name}: command {cmd!r} answered {reply!r}, expected {what}")
-        return reply
-
-    def _command(self, cmd: str, timeout_s: float | None = None) -> str:
-        """Send one command and return its answer; asynchronous lines read meanwhile are queued."""
-        self._ser.write(cmd.encode("ascii") + b"\r\n")
-        self._ser.flush()
-        deadline = time.monotonic() + (self._reply_timeout_s if timeout_s is None else timeout_s)
+    # -- I/O threads ----------------------------------------------------------------
+    def _write_loop(self) -> None:
         while True:
-            line = self._next_line(deadline)
-            if line is None:
-                raise Rn2483Error(f"{self.port_name}: command {cmd!r}: no answer within "
-                                  f"{self._reply_timeout_s if timeout_s is None else timeout_s:g} s")
-            if not self._take_async(line):
-                return line
-
-    def _next_line(self, deadline: float) -> str | None:
-        while True:
-            nl = self._rx_buf.find(b"\n")
-            if nl >= 0:
-                raw = bytes(self._rx_buf[:nl]).rstrip(b"\r")
-                del self._rx_buf[: nl + 1]
-                return raw.decode("ascii", errors="replace")
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                return None
-            # Blocks until one byte arrives or the port timeout (reply_timeout_s) passes.
-            self._rx_buf += self._ser.read(max(1, self._ser.in_waiting))
-
-    def _drain(self) -> None:
-        """Take what has arrived, without waiting."""
-        waiting = self._ser.in_waiting
-        if waiting:
-            self._rx_buf += self._ser.read(waiting)
-        while True:
-            nl = self._rx_buf.find(b"\n")
-            if nl < 0:
+            cmd = self._commands.get()
+            if cmd is None:
                 return
-            raw = bytes(self._rx_buf[:nl]).rstrip(b"\r")
-            del self._rx_buf[: nl + 1]
-            line = raw.decode("ascii", errors="replace")
-            if not self._take_async(line):
-                self.lines_ignored += 1   # an answer nobody asked for (e.g. a late one)
+            timeout_s = self._reply_timeout_s if cmd.timeout_s is None else cmd.timeout_s
+            with self._lock:
+                self._in_flight = cmd
+            try:
+                if self._io_error is None:
+                    self._reader.write((cmd.text + P.EOL).encode("ascii"))
+            except (serial.SerialException, OSError) as e:
+                with self._lock:
+                    self._io_error = self._io_error or e
+            answered = cmd.done.wait(timeout_s) if self._io_error is None else False
+            if not answered:
+                with self._lock:
+                    if self._in_flight is cmd:       # no answer: give up on it, go on
+                        self._in_flight = None
+                        self._finish_locked(cmd, None)
 
-    def _take_async(self, line: str) -> bool:
-        """Queue `line` if it is an asynchronous module line; False if it is an answer."""
-        if line.startswith(_RX_PREFIX + " "):
-            self._receiving = False
-            self._pending.append(("rx", line[len(_RX_PREFIX):].strip(), self._now_us()))
-            return True
-        if line == _TX_OK or line == _RADIO_ERR:
-            stamp = self._now_us()
-            if self._transmitting:
-                self._transmitting = False
-                self._pending.append(("tx", line == _TX_OK, stamp))
-            elif self._receiving:
-                self._receiving = False        # watchdog or window ended the reception
+    def _finish_locked(self, cmd: _Command, reply: str | None) -> None:
+        cmd.reply = reply
+        self._inbox.append(("reply", cmd, reply))
+        self._outstanding -= 1
+        cmd.done.set()
+        self._changed.notify_all()
+
+    def _on_line(self, line: str) -> None:
+        """Reader thread: sort one line; nothing here waits."""
+        with self._lock:
+            if P.is_async_line(line):
+                self._inbox.append(("line", line))
+                if P.parse_rx_line(line) is not None:
+                    # Ask for this frame's rssi and snr now, so the answers are usually in
+                    # by the next poll; the entry is completed in stream order.
+                    entry = _RxEntry(P.parse_rx_line(line))
+                    self._pending_rx.append(entry)
+                    for text in (P.RADIO_GET_RSSI, P.RADIO_GET_SNR):
+                        if not self._closed:
+                            self._queue_locked(_Command(text, self._rx_answer(entry, text)))
+                self._changed.notify_all()
+                return
+            cmd = self._in_flight
+            if cmd is None:
+                self.lines_ignored += 1    # an answer nobody waits for (e.g. a late one)
+                return
+            self._in_flight = None
+            self._finish_locked(cmd, line)
+
+    def _rx_answer(self, entry: _RxEntry, text: str) -> Callable[[str | None], None]:
+        def store(reply: str | None) -> None:
+            if text == P.RADIO_GET_RSSI:
+                entry.rssi = reply
             else:
-                self.lines_ignored += 1
-            return True
-        return False
+                entry.snr = reply
+            entry.answers += 1
+        return store
+
+    def _on_connection_lost(self, exc) -> None:
+        with self._lock:
+            if exc is not None and not self._closed:
+                self._io_error = exc
+            cmd, self._in_flight = self._in_flight, None
+            if cmd is not None and not cmd.done.is_set():
+                self._finish_locked(cmd, None)
+            self._changed.notify_all()
+
+
+def _number(text: str | None) -> float:
+    try:
+        return float(int(text))             # the module prints whole dB / dBm
+    except (TypeError, ValueError):
+        return float("nan")

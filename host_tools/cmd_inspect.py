@@ -29,6 +29,7 @@ from firmware.comms.frame import SEQ_MODULUS, decode_frame, seq_newer
 from firmware.comms.link import RATE_WINDOW_US
 from firmware.comms.schema import BY_NAME, SCHEMA_FINGERPRINT, markdown_table
 from hal.lora import PROFILES, RadioProfile
+from hal.samples import RadioRxFrame
 from radio_sim.air_log import FATES, RECEIVED, AirFrame, Reception
 
 UNKNOWN_SENDER = 255           # serial mode: sender of a frame whose header cannot be read
@@ -250,101 +251,51 @@ def format_stats(stats: dict[int, SenderStats], reasons: Counter) -> str:
     return "\n".join(lines)
 
 
-# ---- live modem ------------------------------------------------------------------------
+# ---- live modem ----------------------------------------------------------------------
 
-class _Lines:
-    """Line reader over a pyserial port with a deadline; keeps partial lines across timeouts."""
-
-    def __init__(self, port: Any) -> None:
-        self.port, self.buf = port, b""
-
-    def read(self, deadline: float | None) -> str | None:
-        while b"\n" not in self.buf:
-            if deadline is not None and time.monotonic() >= deadline:
-                return None
-            chunk = self.port.readline()
-            self.buf += chunk
-        line, _, self.buf = self.buf.partition(b"\n")
-        return line.decode("ascii", "replace").rstrip("\r")
-
-
-def _command(port: Any, lines: _Lines, cmd: str, reply_timeout_s: float = 2.0) -> str:
-    port.write((cmd + "\r\n").encode("ascii"))
-    reply = lines.read(time.monotonic() + reply_timeout_s)
-    if reply is None:
-        raise InspectError(f"modem did not answer {cmd!r} within {reply_timeout_s} s")
-    return reply
-
-
-def configure_commands(profile: RadioProfile) -> list[str]:
-    m = profile.modulation
-    return [
-        "radio set mod lora", f"radio set freq {profile.freq_hz}", f"radio set sf sf{m.sf}",
-        f"radio set bw {m.bw_hz // 1000}", f"radio set cr 4/{4 + m.cr}",
-        f"radio set crc {'on' if m.crc_on else 'off'}", "radio set sync 12",
-        f"radio set prlen {m.preamble_symbols}", "radio set wdt 0",
-    ]
-
-
-def serial_receive(port: Any, profile: RadioProfile, on_frame: Callable[[AirFrame], None], *,
+def serial_receive(url: str, profile: RadioProfile, on_frame: Callable[[AirFrame], None], *,
                    count: int | None = None, timeout_s: float | None = None, configure: bool = True,
                    receiver_id: int = 0) -> int:
-    """Continuous receive on an RN2483-compatible modem (an open pyserial port, read timeout
-    set short): `radio rx 0`, one frame (`radio_rx  <hex>`) or `radio_err`, re-arm. Each
-    frame becomes an AirFrame stamped with wall-clock microseconds since the start. Returns
-    the number of frames; stops at `count`, `timeout_s`, or KeyboardInterrupt."""
-    lines = _Lines(port)
+    """Continuous receive on an RN2483-compatible modem through the project's driver
+    (hal.rn2483.Rn2483Modem: it configures the profile unless `configure` is False, re-arms
+    `radio rx 0` after every frame or `radio_err`, and asks each frame's rssi and snr). Each
+    frame becomes an AirFrame stamped with the driver's clock (wall-clock microseconds since
+    it opened the port). Returns the number of frames; stops at `count`, `timeout_s`, or
+    KeyboardInterrupt."""
+    from hal.rn2483 import Rn2483Error, Rn2483Modem
+
+    try:
+        modem = Rn2483Modem(url, profile, configure=configure)
+    except Rn2483Error as e:
+        raise InspectError(str(e)) from None
     t0 = time.monotonic()
     deadline = None if timeout_s is None else t0 + timeout_s
-    _command(port, lines, "sys get ver")
-    _command(port, lines, "mac pause")
-    if configure:
-        for cmd in configure_commands(profile):
-            reply = _command(port, lines, cmd)
-            if reply != "ok":
-                raise InspectError(f"modem refused {cmd!r}: {reply!r}")
+    m = profile.modulation
     n = 0
     try:
         while count is None or n < count:
-            if deadline is not None and time.monotonic() >= deadline:
+            remaining_s = None if deadline is None else deadline - time.monotonic()
+            if remaining_s is not None and remaining_s <= 0:
                 break
-            reply = _command(port, lines, "radio rx 0")
-            if reply != "ok":
-                raise InspectError(f"modem refused 'radio rx 0': {reply!r}")
-            line = lines.read(deadline)
-            if line is None:
-                break
-            if line == "radio_err" or not line.startswith("radio_rx"):
-                continue
-            hexs = line[len("radio_rx"):].strip()
+            modem.wait(0.2 if remaining_s is None else min(0.2, remaining_s))
             try:
-                payload = bytes.fromhex(hexs)
-            except ValueError:
-                print(f"warning: modem sent an unreadable frame line {line!r}", file=sys.stderr)
-                continue
-            stamp_us = round((time.monotonic() - t0) * 1e6)
-            rssi = _query_number(port, lines, "radio get rssi")
-            snr = _query_number(port, lines, "radio get snr")
-            res = decode_frame(payload)
-            sender = res.frame.sender_id if res.frame is not None else UNKNOWN_SENDER
-            m = profile.modulation
-            on_frame(AirFrame(stamp_us, stamp_us + profile.airtime_us(len(payload)), sender, profile.freq_hz,
-                              m.sf, m.bw_hz, payload, (Reception(receiver_id, rssi, snr, RECEIVED),)))
-            n += 1
+                events = modem.poll()
+            except Rn2483Error as e:
+                raise InspectError(str(e)) from None
+            for e in events:
+                if not isinstance(e, RadioRxFrame) or (count is not None and n >= count):
+                    continue
+                res = decode_frame(e.payload)
+                sender = res.frame.sender_id if res.frame is not None else UNKNOWN_SENDER
+                on_frame(AirFrame(e.stamp_us, e.stamp_us + profile.airtime_us(len(e.payload)), sender,
+                                  profile.freq_hz, m.sf, m.bw_hz, e.payload,
+                                  (Reception(receiver_id, e.rssi_dbm, e.snr_db, RECEIVED),)))
+                n += 1
     finally:
-        try:
-            port.write(b"radio rxstop\r\n")
-        except Exception:       # the port may already be gone; stopping is best effort
-            pass
+        modem.close()          # leaves the module idle (`radio rxstop`)
+    if modem.lines_ignored:
+        print(f"warning: the modem sent {modem.lines_ignored} unreadable or unexpected line(s)", file=sys.stderr)
     return n
-
-
-def _query_number(port: Any, lines: _Lines, cmd: str) -> float:
-    reply = _command(port, lines, cmd)
-    try:
-        return float(reply)
-    except ValueError:
-        return float("nan")
 
 
 # ---- command -----------------------------------------------------------------------------
@@ -426,7 +377,6 @@ def _main(args: argparse.Namespace) -> int:
         _report(frames, profile, args, hdr, printed=False)
         did = True
     elif args.serial:
-        import serial   # host tool only; the firmware never sees pyserial
         profile = PROFILES[args.profile or "eu868-g3"]
         frames: list[AirFrame] = []
         writer = CaptureWriter(args.write_capture, profile.name, {"source": args.serial}) if args.write_capture else None
@@ -439,14 +389,12 @@ def _main(args: argparse.Namespace) -> int:
             if live:
                 print(format_frame(describe(a, profile)), flush=True)
 
-        port = serial.serial_for_url(args.serial, baudrate=57600, timeout=0.2)
         try:
-            serial_receive(port, profile, on_frame, count=args.count, timeout_s=args.timeout,
+            serial_receive(args.serial, profile, on_frame, count=args.count, timeout_s=args.timeout,
                            configure=not args.no_configure, receiver_id=args.receiver_id)
         except KeyboardInterrupt:
             pass
         finally:
-            port.close()
             if writer:
                 writer.close()
         _report(frames, profile, args, {"serial": args.serial, "profile": profile.name, "frames": len(frames)},

@@ -235,9 +235,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         return result
     finally:
         if bank is not None:
-            for r in radios:
-                r.close()
-            bank.close()
+            bank.close()                    # closes the radios too
         if capture is not None:
             capture.close()
 
@@ -306,7 +304,7 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
                 agent.tick()
         world.step(tick_us)
         if bank is not None:
-            bank.advance_to(world.now_us)   # the bank moves the channel and feeds the ptys
+            bank.advance_to(world.now_us)   # the bank moves the channel, the drivers read up to it
         else:
             channel.advance_to(world.now_us)
         ticks += 1

@@ -1,4 +1,5 @@
-"""Virtual RN2483 modems on real pseudo-terminals, all on one shared Channel.
+"""Virtual RN2483 (or, for the US band, RN2903) modems on real pseudo-terminals, all on one
+shared Channel.
 
 Each modem is a pty pair: the client (a real modem driver, pyserial, minicom) opens the
 slave path; the bank reads command lines from the master, answers them through the pure
@@ -9,13 +10,14 @@ Two ways to drive time (the bank itself never reads a clock):
 
 - Lockstep (`ModemBank(...)` then `advance_to(now_us)`): the mission runner owns time.
   A service thread answers commands at the bank's current time, which moves only in
-  `advance_to`. Why this has no races: the drivers (hal.rn2483.Rn2483Modem) wait for the
-  reply to every command they send, so when the runner calls `advance_to` between two
-  firmware ticks every command has already been served; a lock keeps `advance_to` and the
-  service thread apart anyway. Lines written by `advance_to` go into the same ordered byte
-  stream before any later reply, so a driver that ends each poll with a query and reads up
-  to its reply (a barrier) has seen every event up to the current time, whatever the
-  kernel's pty scheduling does.
+  `advance_to`. The drivers (hal.rn2483.Rn2483Modem) do their I/O on their own threads, so
+  the runner hands time over in three steps (`LockstepSerialRadios.advance_to`): every
+  driver settles (all commands the firmware queued during the tick are answered, so the
+  bank served them at the tick's time), then the bank advances, then every driver syncs
+  (a barrier query: lines written by `advance_to` go into the same ordered byte stream
+  before its reply, so once the reply is in, every event up to the new time has been read,
+  whatever the kernel's pty scheduling does). A lock keeps `advance_to` and the service
+  thread apart anyway.
 - Wall clock (`serve(now_us_fn, should_stop)`): for `lorascout modem`. The caller passes
   the clock; the loop sleeps in select() until a command arrives or the Channel or a
   module timer is due.
@@ -34,8 +36,9 @@ import threading
 import tty
 from collections.abc import Callable, Sequence
 
-from hal.lora import RadioProfile
-from radio_sim.rn2483 import PRIVATE_SYNC_WORD, Rn2483, on_air_settings
+from hal import rn2483_protocol as P
+from hal.lora import PRIVATE_SYNC_WORD, AirInterface, RadioProfile
+from radio_sim.rn2483 import Rn2483, on_air_settings
 
 _READ_CHUNK = 4096
 _MAX_PENDING_INPUT = 4096   # bytes of an unterminated line kept before it is answered as invalid
@@ -48,11 +51,11 @@ class _ChannelPort:
         self._channel = channel
         self._node_id = node_id
 
-    def transmit(self, payload: bytes, now_us: int) -> int | None:
-        return self._channel.transmit(self._node_id, payload, now_us)
+    def transmit(self, payload: bytes, now_us: int, air: AirInterface, tx_power_dbm: float) -> int | None:
+        return self._channel.transmit(self._node_id, payload, now_us, air=air, tx_power_dbm=tx_power_dbm)
 
-    def set_listening(self, listening: bool, now_us: int) -> None:
-        self._channel.set_listening(self._node_id, listening, now_us)
+    def set_listening(self, listening: bool, now_us: int, air: AirInterface) -> None:
+        self._channel.set_listening(self._node_id, listening, now_us, air=air)
 
 
 class _Pty:
@@ -78,7 +81,14 @@ class _Pty:
 
 
 class ModemBank:
-    """N virtual RN2483 modems sharing `channel`, one per node id.
+    """N virtual RN2483 modems sharing `channel`, one per node id (RN2903 modems when the
+    profile is in the US 902-928 MHz band).
+
+    Each modem's board radiates `radio set pwr` plus a fixed front-end gain chosen so that a
+    modem configured for the profile (hal.rn2483_protocol.network_config_commands) radiates
+    the profile's power (eu868-g3's 27 dBm is the module's 15 dBm and a 12 dB amplifier):
+    then the serial path and the in-process modems give the same air, and `radio set pwr`
+    moves a modem's power from there, dB for dB.
 
     The caller attaches the node ids to the Channel (positions are its business) before
     making the bank, and from then on leaves the Channel's time and events to the bank:
@@ -94,9 +104,12 @@ class ModemBank:
         if len(set(node_ids)) != len(node_ids):
             raise ValueError(f"node_ids must be distinct, got {list(node_ids)}")
         self._channel = channel
-        self._on_air = on_air_settings(profile, sync_word)
+        self.model = P.model_for_freq(profile.freq_hz) or P.RN2483
+        self._on_air = on_air_settings(profile, sync_word, self.model)
+        gain_db = profile.tx_power_dbm - self._on_air.pwr_dbm
         self.node_ids = tuple(node_ids)
-        self.modems = [Rn2483(n, _ChannelPort(channel, n), self._on_air, ideal_link=profile.ideal)
+        self.modems = [Rn2483(n, _ChannelPort(channel, n), self._on_air, model=self.model,
+                              ideal_link=profile.ideal, front_end_gain_db=gain_db)
                        for n in self.node_ids]
         self._ptys: list[_Pty] = []
         try:
@@ -321,22 +334,48 @@ class ModemBank:
                     pass
 
 
+class LockstepSerialRadios:
+    """A ModemBank and the drivers talking to it, advanced together (see the module
+    docstring): `advance_to` settles every driver, advances the bank, then syncs every
+    driver, so the next firmware tick sees everything up to the new time and nothing more."""
+
+    def __init__(self, bank: ModemBank, radios: list):
+        self.bank = bank
+        self.radios = radios
+
+    @property
+    def now_us(self) -> int:
+        return self.bank.now_us
+
+    def advance_to(self, now_us: int) -> None:
+        for r in self.radios:
+            r.settle()
+        self.bank.advance_to(now_us)
+        for r in self.radios:
+            r.sync()
+
+    def close(self) -> None:
+        for r in self.radios:
+            r.close()
+        self.bank.close()
+
+
 def open_serial_radios(channel, profile: RadioProfile, clock, node_ids: Sequence[int],
-                       **modem_kwargs) -> tuple[ModemBank, list]:
+                       **modem_kwargs) -> tuple[LockstepSerialRadios, list]:
     """Lockstep serial radios for a mission: one virtual modem per node id (already attached
-    to `channel`), each driven by hal.rn2483.Rn2483Modem over its pty with the poll barrier
-    on. Returns (bank, radios); call bank.advance_to(clock.now_us()) before each round of
-    firmware ticks, and bank.close() (after closing the radios) at the end."""
+    to `channel`), each driven by hal.rn2483.Rn2483Modem over its pty in lockstep mode.
+    Returns (link, radios); call link.advance_to(clock.now_us()) between rounds of firmware
+    ticks, and link.close() at the end (it closes the radios too)."""
     from hal.rn2483 import Rn2483Modem
 
     bank = ModemBank(channel, profile, node_ids, start_us=clock.now_us())
     radios: list = []
     try:
         for path in bank.paths:
-            radios.append(Rn2483Modem(path, profile, clock, sync_poll=True, **modem_kwargs))
+            radios.append(Rn2483Modem(path, profile, clock, lockstep=True, **modem_kwargs))
     except BaseException:
         for r in radios:
             r.close()
         bank.close()
         raise
-    return bank, radios
+    return LockstepSerialRadios(bank, radios), radios

@@ -4,11 +4,8 @@ clock time, driven by plain pyserial, by our backend, and by a third-party RN248
 from __future__ import annotations
 
 import signal
-import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
 import pytest
 import serial
@@ -16,40 +13,12 @@ import serial
 from hal.lora import PROFILES
 from hal.rn2483 import Rn2483Modem
 from hal.samples import RadioRxFrame, RadioTxDone
+from tests.doubles import ModemServer
 
-REPO = Path(__file__).resolve().parents[1]
 PROFILE = PROFILES["eu868-g3"]
 SETUP = ("mac pause", "radio set mod lora", "radio set freq 869525000", "radio set sf sf7",
          "radio set bw 125", "radio set cr 4/5", "radio set pwr 14", "radio set crc on",
          "radio set sync 12", "radio set prlen 8", "radio set wdt 0")
-
-
-class ModemServer:
-    def __init__(self, count: int, *extra: str):
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "host_tools.cli", "modem", "--count", str(count), *extra],
-            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        )
-        self.paths = [self.proc.stdout.readline().strip() for _ in range(count)]
-        if not all(p.startswith("/dev/") for p in self.paths):
-            self.proc.kill()
-            raise AssertionError(f"lorascout modem printed {self.paths!r}; stderr: {self.proc.stderr.read()}")
-
-    def stop(self, sig=signal.SIGINT) -> int:
-        self.proc.send_signal(sig)
-        try:
-            return self.proc.wait(timeout=10)
-        finally:
-            if self.proc.poll() is None:
-                self.proc.kill()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
 
 
 def cmd(port: serial.Serial, line: str) -> str:
@@ -183,8 +152,29 @@ def test_round_trip_time_of_the_wall_clock_server():
     assert rtt_us < 20_000
 
 
-def test_modem_command_refuses_a_profile_the_module_cannot_tune():
-    proc = subprocess.run([sys.executable, "-m", "host_tools.cli", "modem", "--radio", "us915"],
-                          cwd=REPO, capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 2 and proc.stdout == ""
-    assert "--radio us915" in proc.stderr and "outside the RN2483's bands" in proc.stderr
+def test_us915_is_served_by_rn2903_modems_that_our_backend_drives():
+    us915 = PROFILES["us915"]
+    with ModemServer(2, "--radio", "us915") as server:
+        port = serial.Serial(server.paths[0], 57600, timeout=5)
+        try:
+            assert cmd(port, "sys get ver") == "RN2903 1.0.5 Nov 06 2018 10:45:27"
+            assert cmd(port, "radio set freq 868100000") == "invalid_param"
+        finally:
+            port.close()
+        a = Rn2483Modem(server.paths[0], us915)
+        b = Rn2483Modem(server.paths[1], us915)
+        try:
+            assert a.model.name == "RN2903" and a.version.startswith("RN2903")
+            assert a.transmit(b"over the US band")
+            deadline = time.monotonic() + 5
+            got = []
+            while time.monotonic() < deadline and not got:
+                got = [e for e in b.poll() if isinstance(e, RadioRxFrame)]
+                a.poll()
+                time.sleep(0.002)
+            assert [e.payload for e in got] == [b"over the US band"]
+            assert a.command_errors == [] and b.command_errors == []
+        finally:
+            a.close()
+            b.close()
+        assert server.stop() == 0

@@ -4,6 +4,7 @@ determinism, event order, the simulated modem, and the wall-crossing kernel."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from fractions import Fraction
 
 import numpy as np
@@ -12,7 +13,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from hal.interfaces import RadioModem
-from hal.lora import LoraModulation, profile
+from hal.lora import AirInterface, LoraModulation, profile
 from hal.samples import RadioRxFrame, RadioTxDone
 from hal.sim.radio import SimRadioModem, attach_sim_radios
 from radio_sim.air_log import (
@@ -589,3 +590,70 @@ def test_reference_traversal_diagonal_steps_only_through_corners():
     assert count_wall_crossings_ref(wall, 0, 0, 7, 7, 4) == 0
     assert count_wall_crossings_nb(wall, 0, 0, 7, 7, 4) == 0
     assert count_wall_crossings_nb(wall, 0, 1, 7, 7, 4) == 1
+
+
+# ---------------------------------------------------------------------------------------------
+# air interfaces other than the profile's: who hears whom, who collides with whom
+# ---------------------------------------------------------------------------------------------
+
+NET = G1.air_interface()                                       # 868.1 MHz SF7 BW125, sync 12
+
+
+@pytest.mark.parametrize("change, heard", [
+    ({}, True),
+    ({"freq_hz": 868_300_000}, False),
+    ({"modulation": LoraModulation(8, 125_000)}, False),
+    ({"modulation": LoraModulation(7, 250_000)}, False),
+    ({"sync_word": 0x34}, False),
+    ({"iq_inverted": True}, False),
+    # Coding rate, preamble and CRC travel in the explicit header: the receiver follows them.
+    ({"modulation": LoraModulation(7, 125_000, cr=4, preamble_symbols=12, crc_on=False)}, True),
+])
+def test_a_receiver_hears_only_frames_sent_with_its_settings(change, heard):
+    w = World({0: (0.0, 0.0), 1: (10.0, 0.0)})
+    tx_air = replace(NET, **change)
+    w.channel.set_listening(0, True, 0)                        # armed for the network's settings
+    end_us = w.channel.transmit(1, bytes(12), 0, air=tx_air)
+    assert end_us == tx_air.airtime_us(12)                     # the frame's own time on air
+    w.channel.advance_to(end_us)
+    assert w.fate(1, 0) == (RECEIVED if heard else NOT_LISTENING)
+    assert w.frames[0].freq_hz == tx_air.freq_hz and w.frames[0].sf == tx_air.modulation.sf
+    # Retuned to the sender's settings, the receiver hears the next frame.
+    w.channel.set_listening(0, True, end_us, air=tx_air)
+    w.channel.transmit(1, bytes(12), end_us, air=tx_air)
+    w.channel.advance_to(end_us + tx_air.airtime_us(12))
+    assert w.fate(1, 0, nth=1) == RECEIVED
+
+
+def test_power_on_defaults_hear_each_other_off_the_networks_point():
+    defaults = AirInterface(868_100_000, LoraModulation(12, 125_000), sync_word=0x34)
+    w = World({0: (0.0, 0.0), 1: (10.0, 0.0)})
+    w.channel.set_listening(0, True, 0, air=defaults)
+    end_us = w.channel.transmit(1, b"hi", 0, air=defaults, tx_power_dbm=1.0)
+    w.channel.advance_to(end_us)
+    [frame] = w.channel.take_events(0)
+    assert frame.payload == b"hi" and frame.rssi_dbm == pytest.approx(1.0 - w.channel.propagation.path_loss_db(10.0))
+
+
+def test_other_spreading_factors_do_not_collide_other_sync_words_do():
+    w = World({0: (0.0, 0.0), 1: (10.0, 0.0), 2: (-10.0, 0.0), 3: (0.0, 10.0)})
+    sf8 = replace(NET, modulation=LoraModulation(8, 125_000))
+    w.channel.transmit(1, b"A" * 12, 0)
+    w.channel.transmit(2, b"B" * 12, 0, air=sf8)               # same time, other SF
+    w.channel.advance_to(sf8.airtime_us(12))
+    assert w.fate(1, 0) == RECEIVED
+    w.channel.set_listening(0, True, w.channel.now_us)
+    t = w.channel.now_us
+    w.channel.transmit(1, b"A" * 12, t)
+    w.channel.transmit(3, b"C" * 12, t, air=replace(NET, sync_word=0x34))   # same chirps, other sync
+    w.channel.advance_to(t + AIRTIME_12B_US)
+    assert w.fate(1, 0, nth=1) == COLLIDED
+
+
+def test_reported_snr_stays_in_the_radios_register_range():
+    w = World({0: (0.0, 0.0), 1: (1.0, 0.0), 2: (3000.0, 0.0)})
+    w.channel.transmit(1, bytes(4), 0)
+    w.channel.advance_to(G1.airtime_us(4))
+    [near] = w.channel.take_events(0)
+    assert near.snr_db == 31.75                                # 14 dBm at 1 m: far above the ceiling
+    assert near.rssi_dbm - w.channel.noise_floor_dbm > 90
