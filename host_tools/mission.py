@@ -191,7 +191,11 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 profiler: TaskProfiler | None = None,
                 params: ExplorationParams = ExplorationParams(),
                 rates: TaskRates = TaskRates(),
-                world_params: WorldParams = WorldParams()) -> MissionResult:
+                world_params: WorldParams = WorldParams(),
+                should_stop: Callable[[], bool] | None = None) -> MissionResult:
+    """One mission to completion, the time limit, or until `should_stop()` (asked once per
+    tick) says so: then it ends there, with termination "interrupted", and the result holds
+    everything up to that tick."""
     occ, start, label = resolve_map(cfg.map_spec)
     poses = start_poses(occ, start, cfg.starts, cfg.robots)
     world = World(occ, poses, cfg.seed, world_params)
@@ -226,11 +230,13 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         agent = ExplorerAgent(hal, params, rates, strategy, profile, team_size=cfg.robots)
         agent.setup()
         agents.append(agent)
+    completed = False
     try:
         result = _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh,
-                       progress, profiler, rates)
+                       progress, profiler, rates, should_stop)
         result.coverage_raw = float((world.observed_union() & reachable_raw).sum()) / int(reachable_raw.sum())
         result.start_poses = poses
+        completed = True
         return result
     finally:
         if bank is not None:
@@ -238,7 +244,12 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 r.close()
             bank.close()
         if capture is not None:
-            capture.close()
+            # A mission that ended (an interrupted one too) puts its capture in place; one that
+            # failed leaves the file that was there before.
+            if completed:
+                capture.close()
+            else:
+                capture.abort()
 
 
 def start_poses(occ, map_start: Pose, starts: tuple[tuple[float, float, float | None], ...],
@@ -270,7 +281,8 @@ def _reachable_from(occ, poses: list[Pose], robot_radius_m: float | None = None)
     return reachable
 
 
-def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh, progress, profiler, rates):
+def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh, progress, profiler, rates,
+          should_stop=None):
     reachable_cells = int(reachable.sum())
 
     tick_us = rates.tick_period_us
@@ -281,6 +293,7 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
     coverage = 0.0
     next_sample_us = 0
     ticks = 0
+    interrupted = False
     wall0 = time.perf_counter()
     while True:
         now = world.now_us
@@ -292,6 +305,9 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
                 progress(now / 1e6, coverage)
             next_sample_us += COVERAGE_SAMPLE_US
         if all(a.done for a in agents) or now >= max_us:
+            break
+        if should_stop is not None and should_stop():
+            interrupted = True
             break
         for agent in agents:
             if profiler is not None:
@@ -330,7 +346,7 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
         path_length_m=[float(world.path_length_m(i)) for i in range(cfg.robots)],
         t_total_s=world.now_us / 1e6,
         t_90_s=None if t_90_us is None else t_90_us / 1e6,
-        termination="complete" if all(a.done for a in agents) else "time_limit",
+        termination="complete" if all(a.done for a in agents) else "interrupted" if interrupted else "time_limit",
         wall_s=wall_s,
         sim_s=world.now_us / 1e6,
         ticks=ticks,

@@ -7,6 +7,7 @@ so do the list in `--help` (`params_help`) and the README's table (`params_markd
 from __future__ import annotations
 
 import dataclasses
+import sys
 
 from firmware.params import ExplorationParams, ParamError, check_param, check_params, param_kind, param_range
 
@@ -33,24 +34,25 @@ _PARSERS = {"bool": _parse_bool, "int": _parse_int, "float": float}
 
 def parse_override(item: str) -> tuple[str, bool | int | float]:
     """One NAME=VALUE string as (name, typed value within the parameter's range). ValueError
-    naming the item, the parameter, the value and the valid range."""
+    naming the item, the parameter, the value and the valid range (argparse puts the option's
+    name in front)."""
     fields = {f.name for f in dataclasses.fields(ExplorationParams)}
     name, sep, text = item.partition("=")
     name, text = name.strip(), text.strip()
     if not sep or not name:
-        raise ValueError(f"--set {item!r}: expected NAME=VALUE, e.g. target_seen_within_m=1.5")
+        raise ValueError(f"{item!r}: expected NAME=VALUE, e.g. target_seen_within_m=1.5")
     if name not in fields:
-        raise ValueError(f"--set {item!r}: the explorer has no parameter {name!r} "
+        raise ValueError(f"{item!r}: the explorer has no parameter {name!r} "
                          f"(firmware/params.py lists them: {', '.join(sorted(fields))})")
     kind = param_kind(name)
     try:
         value = _PARSERS[kind](text)
     except ValueError:
-        raise ValueError(f"--set {item!r}: {name} takes a {kind}, not {text!r} ({param_range(name)})") from None
+        raise ValueError(f"{item!r}: {name} takes a {kind}, not {text!r} ({param_range(name)})") from None
     try:
         check_param(name, value)
     except ParamError as exc:
-        raise ValueError(f"--set {item!r}: {exc}") from None
+        raise ValueError(f"{item!r}: {exc}") from None
     return name, value
 
 
@@ -58,11 +60,19 @@ def parse_overrides(items: list[str] | tuple[str, ...]) -> Overrides:
     """NAME=VALUE strings as typed values, sorted by name; the last of repeated names counts.
     ValueError with the offending item for a missing '=', an unknown name, a bad value, or a
     combination the parameters' relations forbid (e.g. logodds_min above logodds_max)."""
-    out: dict[str, bool | int | float] = {}
+    pairs = []
     for item in items:
-        name, value = parse_override(item)
-        out[name] = value
-    overrides = tuple(sorted(out.items()))
+        try:
+            pairs.append(parse_override(item))
+        except ValueError as exc:
+            raise ValueError(f"--set {exc}") from None
+    return combine_overrides(pairs)
+
+
+def combine_overrides(pairs: list[tuple[str, bool | int | float]]) -> Overrides:
+    """Parsed (name, value) pairs as Overrides (the last of a name counts), checked together
+    against the parameters' relations; ValueError naming them otherwise."""
+    overrides = tuple(sorted(dict(pairs).items()))
     try:
         check_params(params_with(overrides))
     except ParamError as exc:
@@ -104,3 +114,27 @@ def params_markdown() -> str:
         lines.append(f"| `{f.name}` | {f.type} | {m['unit'] if m['unit'] not in ('', '1', 'bool') else ''} | "
                      f"{valid} | {_default(f)} | {m['doc']} |")
     return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str]) -> int:
+    """`python -m host_tools.overrides README.md`: put params_markdown() into the README's
+    explorer-params block."""
+    from pathlib import Path
+
+    from host_tools.readme_sync import splice
+    from host_tools.safe_io import write_text
+
+    if len(argv) != 1:
+        print("usage: python -m host_tools.overrides README.md", file=sys.stderr)
+        return 2
+    path = Path(argv[0])
+    try:
+        write_text(path, splice(path.read_text(), params_markdown(), str(path), README_BLOCK))
+    except (OSError, ValueError) as exc:
+        print(f"host_tools.overrides: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -40,8 +40,8 @@ def _probe_writable(folder: Path) -> str | None:
 
 
 def _check_creatable(path: Path, what: str) -> None:
-    """The folders up to `path` exist or can be made, and a file can be created in the last
-    existing one."""
+    """`path`'s missing folders can be made, and a file can be created in the last existing
+    folder on the way."""
     base = _nearest_existing(path.parent)
     if not base.is_dir():
         raise OutputPathError(f"{path}: cannot create the {what}: {base} is not a folder")
@@ -62,7 +62,12 @@ def check_out_dir(path: str | os.PathLike) -> Path:
         if why is not None:
             raise OutputPathError(f"{p}: folder is not writable ({why})")
         return p
-    _check_creatable(p / "x", "output folder")
+    base = _nearest_existing(p)
+    if not base.is_dir():
+        raise OutputPathError(f"{p}: cannot create the output folder: {base} is not a folder")
+    why = _probe_writable(base)
+    if why is not None:
+        raise OutputPathError(f"{p}: cannot create the output folder: folder {base} is not writable ({why})")
     return p
 
 
