@@ -9,13 +9,13 @@ import re
 import sys
 from pathlib import Path
 
-from host_tools.options import (MAP, MAX_SIM_S, QUIET, RADIO, ROBOTS, SEED_MAX, SET, STRATEGY, Opt, add_options,
+from host_tools.options import (MAX_SIM_S, QUIET, RADIO, ROBOTS, SEED_MAX, SET, STRATEGY, Opt, add_options,
                                 with_default)
 from host_tools.overrides import combine_overrides, params_help
 from host_tools.progress import progress_bar
 from host_tools.safe_io import write_text
-from host_tools.sweep import (PARTIAL_NAME, WRITTEN, SweepSpec, code_fingerprint, load_partial, markdown, run_local,
-                               run_ray, save, trial_key)
+from host_tools.sweep import (PARTIAL_NAME, WRITTEN, SweepSpec, code_fingerprint, load_partial, markdown, probe_ray,
+                               run_local, run_ray, save, trial_key)
 
 EXIT_INTERRUPTED = 130
 OLD_PARTIAL_NAME = PARTIAL_NAME + ".old"     # where --overwrite moves an earlier grid's trials
@@ -90,6 +90,12 @@ def main(args: argparse.Namespace) -> int:
     wanted = {trial_key(c, overrides) for c in trials}
     if args.tables_of_code is not None:
         return _tabulate_earlier(args.out, spec, wanted, args.tables_of_code)
+    if args.ray not in (None, "local"):
+        try:
+            probe_ray(args.ray)
+        except RuntimeError as exc:
+            print(f"lorascout sweep: {exc}; nothing was run or changed", file=sys.stderr)
+            return 2
     earlier_grid = _existing_grid(args.out)
     if earlier_grid is not None and not (args.resume or args.overwrite):
         print(f"lorascout sweep: {args.out} already holds a grid ({earlier_grid}); nothing was changed. Give "

@@ -64,12 +64,15 @@ class Opt:
             return ""
         sym = self.metavar or ("N" if self.kind == "int" else "X")
         unit = f" {self.unit}" if self.unit else ""
-        lo = None if self.lo is None else f"{self.lo:g} {'<' if self.lo_open else '<='} "
+
+        def num(v: float) -> str:
+            return str(int(v)) if self.kind == "int" else f"{v:g}"
+
         if self.lo is not None and self.hi is not None:
-            return f"{lo}{sym} <= {self.hi:g}{unit}"
+            return f"{num(self.lo)} {'<' if self.lo_open else '<='} {sym} <= {num(self.hi)}{unit}"
         if self.lo is not None:
-            return f"{sym} {'>' if self.lo_open else '>='} {self.lo:g}{unit}"
-        return f"{sym} <= {self.hi:g}{unit}" if self.hi is not None else ""
+            return f"{sym} {'>' if self.lo_open else '>='} {num(self.lo)}{unit}"
+        return f"{sym} <= {num(self.hi)}{unit}" if self.hi is not None else ""
 
     def parse(self, text: str) -> Any:
         """The typed value of `text`, or argparse.ArgumentTypeError saying what was given and

@@ -187,8 +187,32 @@ def run_local(trials: list[MissionConfig], jobs: int, on_done: Callable[[dict], 
     return results  # type: ignore[return-value]
 
 
-def run_ray(trials: list[MissionConfig], address: str, on_done: Callable[[dict], None],
+RAY_CONNECT_TIMEOUT_S = 6.0
+
+
+def probe_ray(address: str, timeout_s: float = RAY_CONNECT_TIMEOUT_S) -> None:
+    """RuntimeError unless a Ray cluster at `address` accepts a driver within `timeout_s`.
+    ray.init() itself waits without a bound on an address that accepts connections but is no
+    Ray head, so it is tried first in a child process that can be stopped."""
+    import subprocess
+    import sys
+
+    code = ("import sys, ray; ray.init(address=sys.argv[1], log_to_driver=False, logging_level='ERROR'); "
+            "ray.shutdown()")
+    try:
+        done = subprocess.run([sys.executable, "-c", code, address], capture_output=True, text=True,
+                              timeout=timeout_s, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        raise RuntimeError(f"--ray {address}: no Ray cluster answered within {timeout_s:g} s") from None
+    if done.returncode != 0:
+        last = (done.stderr.strip().splitlines() or ["exit status %d" % done.returncode])[-1]
+        raise RuntimeError(f"--ray {address}: cannot join the Ray cluster there ({last})")
+
+
+def run_ray(trials: list[MissionConfig], address: str | None, on_done: Callable[[dict], None],
             overrides: Overrides = ()) -> list[dict]:
+    """The trials on a Ray cluster: None starts a local one, an address joins one (check it
+    first with probe_ray: ray.init may wait for ever on a wrong one)."""
     try:
         import ray
     except ImportError:
