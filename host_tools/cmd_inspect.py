@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import bisect
+import math
 import sys
 import time
 from collections import Counter
@@ -355,7 +356,7 @@ def _query_number(port: Any, lines: _Lines, cmd: str) -> float:
         value = float(reply)
     except ValueError:
         value = float("nan")
-    if value != value or value in (float("inf"), float("-inf")):
+    if not math.isfinite(value):
         print(f"warning: modem answered {cmd!r} with {reply!r}, not a number; recorded as null", file=sys.stderr)
         return float("nan")
     return value
@@ -428,16 +429,13 @@ def _main(args: argparse.Namespace) -> int:
         raise InspectError("--write-capture needs --serial")
     if not (args.capture or args.serial or args.write_dissector or args.schema):
         raise InspectError("nothing to do: give a capture file, --serial PORT, --write-dissector or --schema")
-    did = False
     if args.write_dissector:
         from host_tools.dissector.generate import generate_lua
         from host_tools.safe_io import write_text
         write_text(args.write_dissector, generate_lua())
         print(f"wrote Wireshark dissector {args.write_dissector}", file=sys.stderr)
-        did = True
     if args.schema:
         print(markdown_table())
-        did = True
     if args.capture:
         header, it = read_capture_lines(args.capture)
         numbered = list(it)
@@ -457,13 +455,18 @@ def _main(args: argparse.Namespace) -> int:
         if not args.json:
             print(f"capture {args.capture}: profile {header.profile}, {len(frames)} frames")
         _report(frames, profile, args, hdr, printed=False)
-        did = True
     elif args.serial:
         import serial   # host tool only; the firmware never sees pyserial
         profile = PROFILES[args.profile or "eu868-g3"]
         frames: list[AirFrame] = []
-        writer = CaptureWriter(args.write_capture, profile.name, {"source": args.serial}) if args.write_capture else None
         live = not args.json and not args.summary
+        port = serial.serial_for_url(args.serial, baudrate=57600, timeout=0.2)
+        try:
+            writer = CaptureWriter(args.write_capture, profile.name, {"source": args.serial}) if args.write_capture \
+                else None
+        except OSError:
+            port.close()
+            raise
 
         def on_frame(a: AirFrame) -> None:
             frames.append(a)
@@ -472,21 +475,25 @@ def _main(args: argparse.Namespace) -> int:
             if live:
                 print(format_frame(describe(a, profile)), flush=True)
 
-        port = serial.serial_for_url(args.serial, baudrate=57600, timeout=0.2)
+        ended = False
         try:
             serial_receive(port, profile, on_frame, count=args.count, timeout_s=args.timeout,
                            configure=not args.no_configure, receiver_id=args.receiver_id)
+            ended = True
         except KeyboardInterrupt:
-            pass
+            ended = True
         finally:
             port.close()
             if writer:
-                writer.close()
+                # What was received is kept, even when the modem failed later; a session that
+                # failed before any frame leaves an earlier capture at that path as it was.
+                if ended or frames:
+                    writer.close()
+                else:
+                    writer.abort()
         _report(frames, profile, args, {"serial": args.serial, "profile": profile.name, "frames": len(frames)},
                 printed=live)
-        did = True
     if args.pcap:
         n = write_pcap(args.pcap, frames, args.pcap_mode)
         print(f"wrote {n} packets to {args.pcap} ({args.pcap_mode})", file=sys.stderr)
-    assert did
     return 0

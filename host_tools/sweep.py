@@ -167,10 +167,12 @@ def run_local(trials: list[MissionConfig], jobs: int, on_done: Callable[[dict], 
             results[k] = run_trial(cfg, overrides)
             on_done(results[k])
         return results  # type: ignore[return-value]
+    if not trials:
+        return []
     threads = max(1, (os.cpu_count() or 1) // jobs)
     # Spawned, not forked: a process that has run a parallel kernel holds a thread pool
     # (OpenMP on Linux) that does not survive fork(), and the child would abort.
-    pool = multiprocessing.get_context("spawn").Pool(min(jobs, max(1, len(trials))), initializer=_share_cores,
+    pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(trials)), initializer=_share_cores,
                                                      initargs=(threads,))
     try:
         for k, report in pool.imap_unordered(_run_indexed, [(k, cfg, overrides) for k, cfg in enumerate(trials)]):

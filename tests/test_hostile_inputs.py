@@ -4,7 +4,6 @@ runs every command of the CLI: each ends with a non-zero status, no traceback, a
 naming the option (and, for numbers, the valid range), and every file that was there before
 is unchanged."""
 import importlib
-import json
 import socket
 
 import pytest
