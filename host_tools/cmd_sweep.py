@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 import argparse
-import json
+import contextlib
 import os
 import re
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from host_tools.options import (MAX_SIM_S, QUIET, RADIO, ROBOTS, SEED_MAX, SET, STRATEGY, Opt, add_options,
                                 with_default)
 from host_tools.overrides import combine_overrides, params_help
 from host_tools.progress import progress_bar
-from host_tools.safe_io import write_text
+from host_tools.safe_io import strict_dumps, write_text
 from host_tools.sweep import (PARTIAL_NAME, WRITTEN, SweepSpec, code_fingerprint, load_partial, markdown, probe_ray,
                                run_local, run_ray, save, trial_key)
 
@@ -53,6 +55,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_options(p, OPTIONS)
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = params_help()
+
+
+@contextlib.contextmanager
+def _ctrl_c_deferred():
+    """SIGINT held back (delivered when the block ends), in the main thread."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def _existing_grid(out: Path) -> str | None:
@@ -122,7 +137,7 @@ def main(args: argparse.Namespace) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
         if args.resume:
             # Rewritten whole, atomically: a line cut short is gone, not appended to.
-            write_text(partial_path, "".join(json.dumps(r, sort_keys=True) + "\n" for r in kept))
+            write_text(partial_path, "".join(strict_dumps(r, sort_keys=True) + "\n" for r in kept))
         elif args.overwrite and partial_path.exists():
             os.replace(partial_path, args.out / OLD_PARTIAL_NAME)
         partial = open(partial_path, "a", encoding="utf-8")
@@ -137,10 +152,11 @@ def main(args: argparse.Namespace) -> int:
             # Stamped with the code read once at the start: the workers run that code, whatever
             # the files say by the time a trial ends.
             report["code_sha256"] = code
-            partial.write(json.dumps(report, sort_keys=True) + "\n")
-            partial.flush()
-            os.fsync(partial.fileno())
-            finished_now.append(report)
+            with _ctrl_c_deferred():      # a trial on disk is a trial counted, and the other way round
+                partial.write(strict_dumps(report, sort_keys=True) + "\n")
+                partial.flush()
+                os.fsync(partial.fileno())
+                finished_now.append(report)
             bar.update(1)
             if bar.disable and not args.quiet:
                 # No terminal (a grid left running for hours with its output in a log): a line
