@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any, TextIO
@@ -64,8 +65,6 @@ class CaptureWriter:
     abort() removes): a file already at `path` is replaced only by a finished capture."""
 
     def __init__(self, path: str | os.PathLike, profile_name: str, meta: dict[str, Any] | None = None) -> None:
-        import tempfile
-
         self.path = os.fspath(path)
         self.frames_written = 0
         folder = os.path.dirname(os.path.abspath(self.path))
