@@ -4,8 +4,24 @@ Defaults are Bayer & Faigl's Table II, "simulated scenarios" column, unless note
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from math import log2
+from dataclasses import dataclass, field, fields
+from math import isfinite, log2
+
+# The declaration of every parameter: its default, unit and valid range (inclusive unless
+# open) and one line of meaning, in the field's metadata. `--set` checks against it,
+# `--help` and the README's parameter table are generated from it (host_tools/overrides.py).
+# The ranges keep values that would divide by zero, allocate absurd memory or contradict
+# another parameter out; inside them the explorer runs, not necessarily well.
+MAX_WINDOW_CELLS = 4000     # cells along a side of the local map's window: 64 MB of log-odds
+
+
+class ParamError(ValueError):
+    """A parameter value outside its declared type or range; the message names both."""
+
+
+def _p(default, unit: str, lo, hi, doc: str, *, lo_open: bool = False, hi_open: bool = False):
+    return field(default=default, metadata={"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open,
+                                            "hi_open": hi_open, "doc": doc})
 
 
 @dataclass(frozen=True)
@@ -14,71 +30,85 @@ class ExplorationParams:
     # drops points "farther than d_local from the robot", so d_local is the window's half
     # side: with a 10 m sensor and d_cam 9.5 m, a waypoint at the edge of what the robot sees
     # still has its whole d_cam disc inside the map (10 + 9.5 < 20).
-    resolution_m: float = 0.1
-    d_local_m: float = 20.0
-    recenter_distance_m: float = 2.0        # shift the window when the robot is this far off centre
+    resolution_m: float = _p(0.1, 'm', 0.02, 1.0, 'cell size of the local dense map')
+    d_local_m: float = _p(20.0, 'm', 2.0, 200.0, "half side of the local map's window")
+    recenter_distance_m: float = _p(2.0, 'm', 0.1, 100.0,
+                                    'shift the window when the robot is this far off its centre')
     # Topological map (Table II).
-    d_build_m: float = 1.0
-    d_connect_m: float = 2.5
+    d_build_m: float = _p(1.0, 'm', 0.1, 100.0, 'travel between two vertices of the topological map')
+    d_connect_m: float = _p(2.5, 'm', 0.1, 100.0, 'vertices closer than this are connected')
     # Waypoints (Table II + eq. 3): information within d_cam, clusters, minimum entropy.
-    d_cam_m: float = 9.5
-    waypoint_cluster_radius_m: float = 3.0
-    min_cluster_entropy_bit: float = 90.0    # 20 bit was tried and not kept (README, "Notes and limits")
-    artifact_types: int = 5                  # "five artifacts of different type"
-    candidate_spacing_m: float = 1.0         # waypoint candidates are evaluated on this sub-grid
-    info_rays: int = 64                      # rays cast from a candidate to count observable cells
+    d_cam_m: float = _p(9.5, 'm', 0.5, 100.0, 'radius of what a waypoint would observe')
+    waypoint_cluster_radius_m: float = _p(3.0, 'm', 0.0, 100.0,
+                                          'waypoint candidates within this radius form one cluster')
+    # 20 bit was tried and not kept (README, "Notes and limits")
+    min_cluster_entropy_bit: float = _p(90.0, 'bit', 0.0, 1e9, 'clusters holding less information are no waypoints')
+    # "five artifacts of different type"
+    artifact_types: int = _p(5, 'types', 1, 255, "artifact types a cell may hold (eq. 3's a)")
+    candidate_spacing_m: float = _p(1.0, 'm', 0.05, 20.0, 'waypoint candidates are evaluated on this sub-grid')
+    info_rays: int = _p(64, 'rays', 1, 4096, 'rays cast from a candidate to count observable cells')
     # The presence rule (Explorer._drop_waypoints_seen_by_others): a waypoint near places
     # teammates finished with stays if this much information is out of their view (10 e_min,
     # about 3.5 m2: a room behind a door), and their view is cast with this many rays
     # (2 pi d_cam in cells: neighbouring rays one cell apart at d_cam).
-    presence_keep_bit: float = 900.0
+    presence_keep_bit: float = _p(900.0, 'bit', 0.0, 1e9,
+                                  "the presence rule keeps a waypoint with this much out of teammates' view")
     # The robot's own current target (and waypoints within the cluster radius of it) is exempt
     # from the presence rule. Off by default (README, "Notes and limits").
-    presence_holds_target: bool = False
-    team_view_rays: int = 600
+    presence_holds_target: bool = _p(False, 'bool', None, None,
+                                     "exempt the robot's own target from the presence rule")
+    team_view_rays: int = _p(600, 'rays', 1, 20000, "rays that cast a teammate's view")
     # The presence rule's deadlock breaker (Explorer._revive_shared_frontiers; 0: off): a
     # teammate's place within shared_view_m of one of ours saw about what we saw from there,
     # and a waypoint that a teammate stood within revive_clear_m of was seen by it. Only
     # waypoints holding revive_min_bit (about 15 m2 unseen) are taken back: the deadlocked
     # frontier held 13146 bit, the waypoints wrongly taken back 1100 to 1500 bit (cave,
     # maze_b, Intel lab; README, "Notes and limits").
-    shared_view_m: float = 2.5
-    revive_clear_m: float = 3.0
-    revive_min_bit: float = 4000.0
+    shared_view_m: float = _p(2.5, 'm', 0.0, 100.0,
+                              'deadlock breaker: a teammate place this close to ours saw what we saw')
+    revive_clear_m: float = _p(3.0, 'm', 0.0, 100.0,
+                               'deadlock breaker: no teammate stood this close to a waypoint it takes back')
+    revive_min_bit: float = _p(4000.0, 'bit', 0.0, 1e9,
+                               'deadlock breaker: information a waypoint must hold to be taken back')
     # Robot body and navigation.
-    robot_radius_m: float = 0.25
-    safety_margin_m: float = 0.07            # traversable cells keep radius + margin from walls
-    clearance_cost_m: float = 1.0            # below this distance to walls/unknown, paths pay extra
-    clearance_cost_weight: float = 2.0
-    waypoint_reached_m: float = 0.5
+    robot_radius_m: float = _p(0.25, 'm', 0.05, 5.0, 'robot body radius')
+    safety_margin_m: float = _p(0.07, 'm', 0.0, 5.0, 'traversable cells keep radius + margin from walls')
+    clearance_cost_m: float = _p(1.0, 'm', 0.0, 50.0, 'below this distance to walls or unknown, paths pay extra')
+    clearance_cost_weight: float = _p(2.0, '1', 0.0, 1000.0, 'weight of that extra cost')
+    waypoint_reached_m: float = _p(0.5, 'm', 0.05, 50.0, 'a target this close is reached')
     # A target whose information the robot saw while this close to it counts as reached
     # (Explorer.plan) and is banned: a few wall cells turning unknown again can otherwise
     # make a waypoint there again and again. Farther off, it merely expires, as any does.
     # 0: off, the default. With 1.5 m (commit 3f50bfa) one robot on the Intel lab drove 409 m
     # instead of 1398 m but covered 0.9893 instead of 0.9912, below issue 2's 0.99.
-    target_seen_within_m: float = 0.0
-    lookahead_m: float = 0.35
-    rotate_in_place_rad: float = 0.8
-    heading_gain: float = 2.0
+    target_seen_within_m: float = _p(0.0, 'm', 0.0, 50.0,
+                                     'a target whose information was seen from this close counts as reached (0: off)')
+    lookahead_m: float = _p(0.35, 'm', 0.05, 50.0, "path follower's lookahead")
+    rotate_in_place_rad: float = _p(0.8, 'rad', 0.0, 3.1416,
+                                    'heading error above which the robot turns on the spot')
+    heading_gain: float = _p(2.0, '1/s', 0.0, 100.0, 'turn rate per radian of heading error')
     # A waypoint that was reached or proved unreachable is dropped for good; candidates this
     # close to it are never generated again, which bounds the mission (finite area).
-    ban_radius_m: float = 1.5
-    unreachable_strikes: int = 3             # planning cycles in a row without a route before a drop
-    unreachable_strike_interval_s: float = 1.0   # ... counted at most this often (the planning period)
-    escape_radius_m: float = 0.8             # how far to look for a traversable cell to start from
-    stuck_after_s: float = 0.5               # driving without moving this long marks an obstacle (0: off)
-    follow_closely_after_stall_m: float = 1.0   # ... or, if the LiDAR shows it, path points are not cut this far
-    stall_timeout_s: float = 20.0            # no progress towards the target for this long: drop it
+    ban_radius_m: float = _p(1.5, 'm', 0.0, 50.0, 'no candidates this close to a dropped waypoint')
+    unreachable_strikes: int = _p(3, 'cycles', 1, 10000,
+                                  'planning cycles without a route before a waypoint is dropped')
+    # ... counted at most this often (the planning period)
+    unreachable_strike_interval_s: float = _p(1.0, 's', 0.0, 3600.0, 'strikes are counted at most this often')
+    escape_radius_m: float = _p(0.8, 'm', 0.0, 50.0, 'how far to look for a traversable cell to start from')
+    stuck_after_s: float = _p(0.5, 's', 0.0, 3600.0, 'driving without moving this long marks an obstacle (0: off)')
+    # ... or, if the LiDAR shows it, path points are not cut this far
+    follow_closely_after_stall_m: float = _p(1.0, 'm', 0.0, 50.0, 'after a stall, path points are not cut this far')
+    stall_timeout_s: float = _p(20.0, 's', 0.1, 86400.0, 'no progress towards the target for this long drops it')
     # Log-odds occupancy update.
-    logodds_hit: float = 1.2
-    logodds_miss: float = -0.4
-    logodds_min: float = -4.0
-    logodds_max: float = 4.0
-    logodds_occupied: float = 0.3
-    logodds_free: float = -0.3
+    logodds_hit: float = _p(1.2, 'log-odds', 0.0, 100.0, 'added to a cell a beam ends in', lo_open=True)
+    logodds_miss: float = _p(-0.4, 'log-odds', -100.0, 0.0, 'added to a cell a beam passes', hi_open=True)
+    logodds_min: float = _p(-4.0, 'log-odds', -1000.0, 0.0, "lower clamp of a cell's log-odds", hi_open=True)
+    logodds_max: float = _p(4.0, 'log-odds', 0.0, 1000.0, "upper clamp of a cell's log-odds", lo_open=True)
+    logodds_occupied: float = _p(0.3, 'log-odds', -1000.0, 1000.0, 'a cell above this is occupied')
+    logodds_free: float = _p(-0.3, 'log-odds', -1000.0, 1000.0, 'a cell below this is free')
     # Keyframes (the dense baselines' map updates): the scan at each topological vertex,
     # binned to this many bearings, sent to every teammate on the mesh link.
-    keyframe_bins: int = 360
+    keyframe_bins: int = _p(360, 'bearings', 8, 3600, "bearings a dense baseline's keyframe scan is binned to")
 
     @property
     def entropy_per_cell_bit(self) -> float:
@@ -88,6 +118,67 @@ class ExplorationParams:
     @property
     def window_cells(self) -> int:
         return int(round(2 * self.d_local_m / self.resolution_m))
+
+
+_FIELDS = {f.name: f for f in fields(ExplorationParams)}
+
+
+def param_kind(name: str) -> str:
+    """'bool', 'int' or 'float': the annotation of an ExplorationParams field."""
+    return _FIELDS[name].type
+
+
+def param_range(name: str) -> str:
+    """The valid range of a parameter as text, e.g. '0.02 <= resolution_m <= 1 m'."""
+    f = _FIELDS[name]
+    m = f.metadata
+    if f.type == "bool":
+        return f"{name} is true or false"
+    lo = f"{m['lo']:g} {'<' if m['lo_open'] else '<='} "
+    hi = f" {'<' if m['hi_open'] else '<='} {m['hi']:g}"
+    unit = "" if m["unit"] in ("", "1") else f" {m['unit']}"
+    return f"{lo}{name}{hi}{unit}"
+
+
+def check_param(name: str, value) -> None:
+    """ParamError naming the parameter, the value and the valid range, unless `value` is of
+    the parameter's type and within its range."""
+    if name not in _FIELDS:
+        raise ParamError(f"no explorer parameter {name!r}")
+    f = _FIELDS[name]
+    m = f.metadata
+    kinds = {"bool": (bool,), "int": (int,), "float": (int, float)}[f.type]
+    if not isinstance(value, kinds) or (f.type != "bool" and isinstance(value, bool)):
+        raise ParamError(f"{name} = {value!r}: takes a {f.type} ({param_range(name)})")
+    if f.type == "bool":
+        return
+    below = value <= m["lo"] if m["lo_open"] else value < m["lo"]
+    above = value >= m["hi"] if m["hi_open"] else value > m["hi"]
+    if not isfinite(value) or below or above:
+        raise ParamError(f"{name} = {value!r} is outside the valid range {param_range(name)}")
+
+
+def check_params(p: "ExplorationParams") -> None:
+    """Every parameter within its range, and the relations between them: the local map's
+    window at most MAX_WINDOW_CELLS a side, the log-odds thresholds between the clamps.
+    Raises ParamError naming the parameters, their values and what must hold."""
+    for f in fields(p):
+        check_param(f.name, getattr(p, f.name))
+    cells = 2 * p.d_local_m / p.resolution_m
+    if cells > MAX_WINDOW_CELLS:
+        raise ParamError(
+            f"d_local_m = {p.d_local_m:g} with resolution_m = {p.resolution_m:g} makes a local map window of "
+            f"{cells:.0f} x {cells:.0f} cells ({4 * cells * cells / 2**20:.0f} MiB of log-odds); at most "
+            f"{MAX_WINDOW_CELLS} a side: raise resolution_m to at least {2 * p.d_local_m / MAX_WINDOW_CELLS:g} m")
+    if p.recenter_distance_m >= p.d_local_m:
+        raise ParamError(f"recenter_distance_m = {p.recenter_distance_m:g} must be below d_local_m = "
+                         f"{p.d_local_m:g} (the window moves before the robot leaves it)")
+    chain = [("logodds_min", p.logodds_min), ("logodds_free", p.logodds_free),
+             ("logodds_occupied", p.logodds_occupied), ("logodds_max", p.logodds_max)]
+    for (a, va), (b, vb) in zip(chain, chain[1:]):
+        if not va < vb:
+            raise ParamError(f"{a} = {va:g} must be below {b} = {vb:g} "
+                             "(logodds_min < logodds_free < logodds_occupied < logodds_max)")
 
 
 @dataclass(frozen=True)

@@ -13,25 +13,32 @@ every further line, one transmission (radio_sim.air_log.AirFrame):
 
 `sender_id` is the node that transmitted (a relay, for a relayed frame); the frame header
 inside `payload` names the originator. `rx` has one row per other node, in the order of
-"reception_fields"; fates are radio_sim.air_log.FATES. RSSI and SNR are rounded to 0.01 dB.
-Unknown keys are ignored, so later versions may add some.
+"reception_fields"; fates are radio_sim.air_log.FATES. RSSI and SNR are rounded to 0.01 dB;
+null where the receiver gave no number (a live modem's garbled answer). Unknown keys are
+ignored, so later versions may add some. The JSON is strict (no NaN or Infinity), and a line
+is at most MAX_LINE_BYTES long.
 
     grep '"sender_id": 3,' run.capture.jsonl | grep -c collided
 """
 from __future__ import annotations
 
 import json
+import math
 import os
+import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any, TextIO
 
 from firmware.comms.schema import CRC_NAME, SCHEMA_FINGERPRINT
+from host_tools.safe_io import strict_loads
 from radio_sim.air_log import FATES, AirFrame, Reception
 
 FORMAT_NAME = "lorascout-capture"
 FORMAT_VERSION = 1
 RECEPTION_FIELDS = ("receiver_id", "rssi_dbm", "snr_db", "fate")
+# Longest line the reader takes: a 255-byte frame heard by 255 receivers is about 12 KiB.
+MAX_LINE_BYTES = 1 << 20
 
 
 class CaptureError(ValueError):
@@ -47,19 +54,29 @@ class CaptureHeader:
     version: int = FORMAT_VERSION
 
 
+def _finite_or_none(x: float) -> float | None:
+    return round(x, 2) if math.isfinite(x) else None
+
+
 class CaptureWriter:
-    """Append AirFrames to a capture file. Output is byte-identical for identical input."""
+    """Append AirFrames to a capture file. Output is byte-identical for identical input.
+
+    The frames go to a temporary file beside `path`, which close() renames into place (and
+    abort() removes): a file already at `path` is replaced only by a finished capture."""
 
     def __init__(self, path: str | os.PathLike, profile_name: str, meta: dict[str, Any] | None = None) -> None:
         self.path = os.fspath(path)
         self.frames_written = 0
-        self._f: TextIO | None = open(self.path, "w", encoding="utf-8", newline="\n")
+        folder = os.path.dirname(os.path.abspath(self.path))
+        os.makedirs(folder, exist_ok=True)
+        fd, self._tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(self.path)}.", suffix=".tmp")
+        self._f: TextIO | None = os.fdopen(fd, "w", encoding="utf-8", newline="\n")
         header = {
             "format": FORMAT_NAME, "version": FORMAT_VERSION, "profile": profile_name,
             "schema_fingerprint": f"0x{SCHEMA_FINGERPRINT:04X}", "crc": CRC_NAME,
             "reception_fields": list(RECEPTION_FIELDS), "meta": meta or {},
         }
-        self._f.write(json.dumps(header, sort_keys=True) + "\n")
+        self._f.write(json.dumps(header, sort_keys=True, allow_nan=False) + "\n")
 
     def write(self, air_frame: AirFrame) -> None:
         if self._f is None:
@@ -68,21 +85,41 @@ class CaptureWriter:
         row = {
             "start_us": a.start_us, "end_us": a.end_us, "sender_id": a.sender_id, "freq_hz": a.freq_hz,
             "sf": a.sf, "bw_hz": a.bw_hz, "payload": bytes(a.payload).hex(),
-            "rx": [[r.receiver_id, round(r.rssi_dbm, 2), round(r.snr_db, 2), r.fate] for r in a.receptions],
+            "rx": [[r.receiver_id, _finite_or_none(r.rssi_dbm), _finite_or_none(r.snr_db), r.fate]
+                   for r in a.receptions],
         }
-        self._f.write(json.dumps(row) + "\n")
+        self._f.write(json.dumps(row, allow_nan=False) + "\n")
         self.frames_written += 1
 
     def close(self) -> None:
+        """Finish the capture: it replaces whatever was at `path`."""
+        if self._f is not None:
+            self._f.flush()
+            os.fsync(self._f.fileno())
+            self._f.close()
+            self._f = None
+            mode = (os.stat(self.path).st_mode & 0o7777) if os.path.exists(self.path) else 0o644
+            os.chmod(self._tmp, mode)
+            os.replace(self._tmp, self.path)
+
+    def abort(self) -> None:
+        """Drop the capture: `path` stays as it was."""
         if self._f is not None:
             self._f.close()
             self._f = None
+            try:
+                os.unlink(self._tmp)
+            except OSError:
+                pass
 
     def __enter__(self) -> CaptureWriter:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        if exc_type is None or exc_type is KeyboardInterrupt:
+            self.close()
+        else:
+            self.abort()
 
 
 def _fail(path: str, line: int, fld: str, problem: str) -> CaptureError:
@@ -102,18 +139,29 @@ def _int(path: str, line: int, row: dict, key: str, lo: int | None = None, hi: i
 
 
 def _num(path: str, line: int, fld: str, v: Any) -> float:
-    if not isinstance(v, (int, float)) or isinstance(v, bool):
-        raise _fail(path, line, fld, f"expected a number, got {v!r}")
+    """A measured value: a finite number, or null for 'no number given' (NaN inside)."""
+    if v is None:
+        return math.nan
+    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+        raise _fail(path, line, fld, f"expected a finite number or null, got {v!r}")
     return float(v)
+
+
+def _json(path: str, line: int, text: str, what: str) -> Any:
+    try:
+        return strict_loads(text)
+    except json.JSONDecodeError as e:
+        raise _fail(path, line, "", f"{what}not JSON ({e.msg} at column {e.colno})") from None
+    except ValueError as e:          # NaN, Infinity
+        raise _fail(path, line, "", f"{what}not strict JSON ({e})") from None
+    except RecursionError:
+        raise _fail(path, line, "", f"{what}nested too deeply") from None
 
 
 def _parse_header(path: str, text: str) -> CaptureHeader:
     if not text.strip():
         raise _fail(path, 1, "", "empty file; expected a lorascout-capture header line")
-    try:
-        h = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise _fail(path, 1, "", f"header is not JSON ({e.msg} at column {e.colno})") from None
+    h = _json(path, 1, text, "header is ")
     if not isinstance(h, dict) or h.get("format") != FORMAT_NAME:
         raise _fail(path, 1, "format", f"expected {FORMAT_NAME!r}; is this a lorascout capture?")
     if h.get("version") != FORMAT_VERSION:
@@ -134,10 +182,7 @@ def _parse_header(path: str, text: str) -> CaptureHeader:
 
 
 def parse_frame_line(path: str, line: int, text: str) -> AirFrame:
-    try:
-        row = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise _fail(path, line, "", f"not JSON ({e.msg} at column {e.colno})") from None
+    row = _json(path, line, text, "")
     if not isinstance(row, dict):
         raise _fail(path, line, "", f"expected an object, got {type(row).__name__}")
     start = _int(path, line, row, "start_us")
@@ -173,31 +218,51 @@ def parse_frame_line(path: str, line: int, text: str) -> AirFrame:
     return AirFrame(start, end, sender, freq, sf, bw, payload, tuple(receptions))
 
 
-def read_capture(path: str | os.PathLike) -> tuple[CaptureHeader, Iterator[AirFrame]]:
-    """The header (read now) and an iterator over the frames (read lazily; a bad line raises
-    CaptureError naming file, line and field when the iterator reaches it)."""
+def _lines(path: str, f) -> Iterator[tuple[int, str]]:
+    """(line number, text) of a binary file, each line read with a bound and decoded on its
+    own, so that an error names the exact line."""
+    lineno = 0
+    while True:
+        data = f.readline(MAX_LINE_BYTES + 1)
+        if not data:
+            return
+        lineno += 1
+        if len(data) > MAX_LINE_BYTES:
+            raise _fail(path, lineno, "", f"line longer than {MAX_LINE_BYTES} bytes; is this a lorascout capture?")
+        try:
+            yield lineno, data.decode("utf-8")
+        except UnicodeDecodeError as e:
+            raise _fail(path, lineno, "", f"not UTF-8 text (byte {e.start + 1} of the line)") from None
+
+
+def read_capture_lines(path: str | os.PathLike) -> tuple[CaptureHeader, Iterator[tuple[int, AirFrame]]]:
+    """The header (read now) and an iterator over (line number, frame), read lazily; a bad
+    line raises CaptureError naming file, exact line and field when the iterator reaches it."""
     path = os.fspath(path)
     try:
-        f = open(path, encoding="utf-8")
+        if os.path.isdir(path):
+            raise CaptureError(f"{path}: cannot open: it is a folder")
+        f = open(path, "rb")
     except OSError as e:
         raise CaptureError(f"{path}: cannot open: {e.strerror}") from None
+    lines = _lines(path, f)
     try:
-        header = _parse_header(path, f.readline())
-    except UnicodeDecodeError:
-        f.close()
-        raise _fail(path, 1, "", "not UTF-8 text; is this a lorascout capture?") from None
+        header = _parse_header(path, next(lines, (1, ""))[1])
     except BaseException:
         f.close()
         raise
 
-    def frames() -> Iterator[AirFrame]:
-        lineno = 1
+    def frames() -> Iterator[tuple[int, AirFrame]]:
         with f:
-            try:
-                for lineno, text in enumerate(f, start=2):
-                    if text.strip():
-                        yield parse_frame_line(path, lineno, text)
-            except UnicodeDecodeError:
-                raise _fail(path, lineno + 1, "", "not UTF-8 text") from None
+            for lineno, text in lines:
+                if text.strip():
+                    yield lineno, parse_frame_line(path, lineno, text)
 
     return header, frames()
+
+
+def read_capture(path: str | os.PathLike) -> tuple[CaptureHeader, Iterator[AirFrame]]:
+    """The header (read now) and an iterator over the frames (read lazily; a bad line raises
+    CaptureError naming file, line and field when the iterator reaches it)."""
+    header, it = read_capture_lines(path)
+    return header, (a for _, a in it)

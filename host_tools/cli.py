@@ -5,6 +5,8 @@ import argparse
 import importlib
 import sys
 
+EXIT_INTERRUPTED = 130
+
 # name -> (module, one-line help). Each module defines add_arguments(parser) and main(args) -> int.
 COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("host_tools.cmd_run", "run one mission on the simulated HAL and report it"),
@@ -27,8 +29,14 @@ def main(argv: list[str] | None = None) -> int:
         p.set_defaults(_module=module_name)
         if argv[0] == name:
             importlib.import_module(module_name).add_arguments(p)
-    args = parser.parse_args(argv)
-    return int(importlib.import_module(args._module).main(args) or 0)
+    args = parser.parse_args(argv)     # every option is checked here (host_tools/options.py): exit 2
+    try:
+        return int(importlib.import_module(args._module).main(args) or 0)
+    except KeyboardInterrupt:
+        # Commands that can stop cleanly on Ctrl-C do (run, sweep); anything else ends here,
+        # without a traceback, with the status a shell gives a command SIGINT ended.
+        print(f"lorascout {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -9,21 +9,27 @@ is the simulator's, outside every task, and is not counted."""
 from __future__ import annotations
 
 import argparse
-import json
 import resource
+import sys
 import time
 from collections import defaultdict
+from pathlib import Path
 
 import numpy as np
 
 from firmware.params import TaskRates
 from host_tools.mission import MissionConfig, run_mission
+from host_tools.options import JSON, QUIET, SIM_S_MAX, Opt, add_options
 from host_tools.progress import progress_bar
+from host_tools.safe_io import strict_dumps
+
+# The shared maps beside the repository, wherever the command is run from.
+SHARED_MAPS = Path(__file__).resolve().parents[2] / "shared" / "maps"
 
 SCENARIOS: dict[str, MissionConfig] = {
     "cave-1robot": MissionConfig(map_spec="cave:1", robots=1, seed=0, max_sim_s=600.0),
-    "intel-1robot": MissionConfig(map_spec="../shared/maps/intel.yaml", robots=1, seed=0, max_sim_s=600.0),
-    "maze_a-5robots": MissionConfig(map_spec="../shared/maps/maze_a.yaml", robots=5, seed=0, max_sim_s=600.0),
+    "intel-1robot": MissionConfig(map_spec=str(SHARED_MAPS / "intel.yaml"), robots=1, seed=0, max_sim_s=600.0),
+    "maze_a-5robots": MissionConfig(map_spec=str(SHARED_MAPS / "maze_a.yaml"), robots=5, seed=0, max_sim_s=600.0),
     # A team sharing a real LoRa band: radio traffic in every tick's radio task.
     "cave-3robots-eu868": MissionConfig(map_spec="cave:1:60x60", robots=3, seed=0, max_sim_s=600.0,
                                         radio="eu868-g3", strategy="minpos"),
@@ -44,16 +50,19 @@ class WallClockProfiler:
         self.samples_s[task].append(time.perf_counter() - self._open.pop(task))
 
 
+OPTIONS = (
+    Opt("--scenario", "choice", "what to run", choices=lambda: sorted(SCENARIOS), default="cave-1robot"),
+    Opt("--sim-s", "float", "simulated seconds (default: the scenario's)", unit="s", lo=1.0, hi=SIM_S_MAX,
+        metavar="S"),
+    Opt("--warmup-sim-s", "float", "simulated seconds run first and thrown away, so JIT compilation is not measured",
+        unit="s", lo=0.0, hi=3600.0, default=20.0, metavar="S"),
+    Opt("--serial-radio", "flag", "every robot's radio through the RN2483 driver and a virtual modem on a pty"),
+    JSON, QUIET,
+)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scenario", default="cave-1robot", choices=sorted(SCENARIOS),
-                   help="what to run (default %(default)s)")
-    p.add_argument("--sim-s", type=float, default=None, help="simulated seconds (default: the scenario's)")
-    p.add_argument("--warmup-sim-s", type=float, default=20.0,
-                   help="simulated seconds run first and thrown away, so JIT compilation is not measured")
-    p.add_argument("--serial-radio", action="store_true",
-                   help="every robot's radio through the RN2483 driver and a virtual modem on a pty")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_options(p, OPTIONS)
 
 
 def _stats_ms(samples_s: list[float]) -> dict:
@@ -106,9 +115,13 @@ def run_bench(name: str, sim_s: float | None, warmup_sim_s: float, quiet: bool,
 
 
 def main(args: argparse.Namespace) -> int:
-    report = run_bench(args.scenario, args.sim_s, args.warmup_sim_s, args.quiet, args.serial_radio)
+    try:
+        report = run_bench(args.scenario, args.sim_s, args.warmup_sim_s, args.quiet, args.serial_radio)
+    except (ValueError, OSError) as exc:
+        print(f"lorascout bench: --scenario {args.scenario}: {exc}", file=sys.stderr)
+        return 2
     if args.json:
-        print(json.dumps(report, sort_keys=True))
+        print(strict_dumps(report, sort_keys=True))
         return 0
     radio = report["radio"] + (" through virtual RN2483 modems (serial driver)" if report["serial_radio"] else "")
     print(f"scenario {report['scenario']}: {report['map']}, {report['robots']} robot(s), radio {radio}, "

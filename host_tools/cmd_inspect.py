@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import argparse
 import bisect
-import json
+import math
 import sys
 import time
 from collections import Counter
@@ -30,6 +30,8 @@ from firmware.comms.link import RATE_WINDOW_US
 from firmware.comms.schema import BY_NAME, SCHEMA_FINGERPRINT, markdown_table
 from hal.lora import PROFILES, RadioProfile
 from hal.samples import RadioRxFrame
+from host_tools.options import JSON, Opt, add_options
+from host_tools.safe_io import strict_dumps
 from radio_sim.air_log import FATES, RECEIVED, AirFrame, Reception
 
 UNKNOWN_SENDER = 255           # serial mode: sender of a frame whose header cannot be read
@@ -300,24 +302,28 @@ def serial_receive(url: str, profile: RadioProfile, on_frame: Callable[[AirFrame
 
 # ---- command -----------------------------------------------------------------------------
 
+OPTIONS = (
+    Opt("capture", "in_file", "capture file (JSON Lines, from `lorascout run --capture`)"),
+    JSON,
+    Opt("--summary", "flag", "statistics only, no per-frame lines"),
+    Opt("--pcap", "out_file", "also write a LoRaTap pcap (LINKTYPE 270) for Wireshark", metavar="OUT"),
+    Opt("--pcap-mode", "choice", "one packet per transmission (best RSSI) or per receiver that got it",
+        choices=("per-frame", "per-receiver"), default="per-frame"),
+    Opt("--serial", "text", "pyserial URL or device of an RN2483-compatible modem", metavar="PORT"),
+    Opt("--profile", "choice", "radio profile to configure (serial; default eu868-g3) or to assume for a capture "
+        "whose header names an unknown profile", choices=lambda: sorted(PROFILES)),
+    Opt("--count", "int", "serial: stop after N frames", lo=1, hi=1_000_000_000, metavar="N"),
+    Opt("--timeout", "float", "serial: stop after S seconds", unit="s", lo=0.0, lo_open=True, hi=1e7, metavar="S"),
+    Opt("--no-configure", "flag", "serial: do not send `radio set` commands"),
+    Opt("--receiver-id", "int", "serial: id recorded as the receiver", lo=0, hi=255, default=0, metavar="ID"),
+    Opt("--write-capture", "out_file", "serial: save received frames as a capture", metavar="PATH"),
+    Opt("--write-dissector", "out_file", "write the generated Wireshark Lua dissector", metavar="PATH"),
+    Opt("--schema", "flag", "print the record table as Markdown"),
+)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("capture", nargs="?", help="capture file (JSON Lines, from `lorascout run --capture`)")
-    p.add_argument("--json", action="store_true", help="print one JSON document instead of text")
-    p.add_argument("--summary", action="store_true", help="statistics only, no per-frame lines")
-    p.add_argument("--pcap", metavar="OUT", help="also write a LoRaTap pcap (LINKTYPE 270) for Wireshark")
-    p.add_argument("--pcap-mode", choices=("per-frame", "per-receiver"), default="per-frame",
-                   help="one packet per transmission (best RSSI) or per receiver that got it")
-    p.add_argument("--serial", metavar="PORT", help="pyserial URL or device of an RN2483-compatible modem")
-    p.add_argument("--profile", choices=sorted(PROFILES),
-                   help="radio profile to configure (serial; default eu868-g3) or to assume for a "
-                        "capture whose header names an unknown profile")
-    p.add_argument("--count", type=int, metavar="N", help="serial: stop after N frames")
-    p.add_argument("--timeout", type=float, metavar="S", help="serial: stop after S seconds")
-    p.add_argument("--no-configure", action="store_true", help="serial: do not send `radio set` commands")
-    p.add_argument("--receiver-id", type=int, default=0, help="serial: id recorded as the receiver")
-    p.add_argument("--write-capture", metavar="PATH", help="serial: save received frames as a capture")
-    p.add_argument("--write-dissector", metavar="PATH", help="write the generated Wireshark Lua dissector")
-    p.add_argument("--schema", action="store_true", help="print the record table as Markdown")
+    add_options(p, OPTIONS)
 
 
 def _report(frames: list[AirFrame], profile: RadioProfile | None, args: argparse.Namespace,
@@ -329,7 +335,7 @@ def _report(frames: list[AirFrame], profile: RadioProfile | None, args: argparse
                "senders": {str(k): v.as_dict() for k, v in stats.items()}}
         if not args.summary:
             doc["frames"] = [describe(a, profile) for a in frames]
-        print(json.dumps(doc))
+        print(strict_dumps(doc))
         return
     if not args.summary and not printed:
         for a in frames:
@@ -349,38 +355,50 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _main(args: argparse.Namespace) -> int:
-    from host_tools.capture import CaptureWriter, read_capture
-    from host_tools.pcap import write_pcap
+    from host_tools.capture import CaptureWriter, read_capture_lines
+    from host_tools.pcap import check_frame, write_pcap
 
-    did = False
-    if args.write_dissector:
-        from host_tools.dissector.generate import write_lua
-        write_lua(args.write_dissector)
-        print(f"wrote Wireshark dissector {args.write_dissector}", file=sys.stderr)
-        did = True
-    if args.schema:
-        print(markdown_table())
-        did = True
+    # Everything that can be refused is refused before anything is read or written.
     if args.capture and args.serial:
         raise InspectError("give a capture file or --serial, not both")
+    if args.pcap and not (args.capture or args.serial):
+        raise InspectError("--pcap needs a capture file or --serial")
+    if args.write_capture and not args.serial:
+        raise InspectError("--write-capture needs --serial")
+    if not (args.capture or args.serial or args.write_dissector or args.schema):
+        raise InspectError("nothing to do: give a capture file, --serial PORT, --write-dissector or --schema")
+    if args.write_dissector:
+        from host_tools.dissector.generate import generate_lua
+        from host_tools.safe_io import write_text
+        write_text(args.write_dissector, generate_lua())
+        print(f"wrote Wireshark dissector {args.write_dissector}", file=sys.stderr)
+    if args.schema:
+        print(markdown_table())
     if args.capture:
-        header, it = read_capture(args.capture)
-        frames = list(it)
+        header, it = read_capture_lines(args.capture)
+        numbered = list(it)
+        frames = [a for _, a in numbered]
+        if args.pcap:
+            for line, a in numbered:
+                try:
+                    check_frame(a.start_us, a.freq_hz, a.bw_hz, a.sf)
+                except ValueError as exc:
+                    raise InspectError(f"{args.capture}:{line}: {exc}; no pcap written") from None
         profile = PROFILES.get(header.profile) or (PROFILES[args.profile] if args.profile else None)
         if header.schema_fingerprint is not None and header.schema_fingerprint != SCHEMA_FINGERPRINT:
             print(f"warning: capture schema fingerprint 0x{header.schema_fingerprint:04X} differs from ours "
                   f"0x{SCHEMA_FINGERPRINT:04X}; its frames will fail the CRC", file=sys.stderr)
-        hdr = {"capture": args.capture, "profile": header.profile, "frames": len(frames),
+        hdr = {"capture": str(args.capture), "profile": header.profile, "frames": len(frames),
                "schema_fingerprint": f"0x{SCHEMA_FINGERPRINT:04X}", "meta": header.meta}
         if not args.json:
             print(f"capture {args.capture}: profile {header.profile}, {len(frames)} frames")
         _report(frames, profile, args, hdr, printed=False)
-        did = True
     elif args.serial:
         profile = PROFILES[args.profile or "eu868-g3"]
         frames: list[AirFrame] = []
-        writer = CaptureWriter(args.write_capture, profile.name, {"source": args.serial}) if args.write_capture else None
         live = not args.json and not args.summary
+        writer = CaptureWriter(args.write_capture, profile.name, {"source": args.serial}) if args.write_capture \
+            else None
 
         def on_frame(a: AirFrame) -> None:
             frames.append(a)
@@ -389,22 +407,24 @@ def _main(args: argparse.Namespace) -> int:
             if live:
                 print(format_frame(describe(a, profile)), flush=True)
 
+        ended = False
         try:
             serial_receive(args.serial, profile, on_frame, count=args.count, timeout_s=args.timeout,
                            configure=not args.no_configure, receiver_id=args.receiver_id)
+            ended = True
         except KeyboardInterrupt:
-            pass
+            ended = True
         finally:
             if writer:
-                writer.close()
+                # What was received is kept, even when the modem failed later; a session that
+                # failed before any frame leaves an earlier capture at that path as it was.
+                if ended or frames:
+                    writer.close()
+                else:
+                    writer.abort()
         _report(frames, profile, args, {"serial": args.serial, "profile": profile.name, "frames": len(frames)},
                 printed=live)
-        did = True
     if args.pcap:
-        if not (args.capture or args.serial):
-            raise InspectError("--pcap needs a capture file or --serial")
         n = write_pcap(args.pcap, frames, args.pcap_mode)
         print(f"wrote {n} packets to {args.pcap} ({args.pcap_mode})", file=sys.stderr)
-    if not did:
-        raise InspectError("nothing to do: give a capture file, --serial PORT, --write-dissector or --schema")
     return 0

@@ -4,28 +4,30 @@ walls, the share of it a LiDAR can see at all from where that planner may drive.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 
 from host_tools.map_report import PLANNER_CLEARANCE_M, drivable_centres, observable_share
+from host_tools.options import JSON, MAP, QUIET, Opt, add_options
 from host_tools.progress import progress_bar
+from host_tools.safe_io import atomic_path, strict_dumps
 from world_sim.map_spec import resolve_map
 from world_sim.world import WorldParams
 
+OPTIONS = (
+    MAP,
+    Opt("--clearance-m", "float", "the planner's distance from wall cells, one or more (default: the firmware's "
+        "robot radius plus safety margin)", unit="m", lo=0.0, lo_open=True, hi=10.0, nargs="+",
+        default=[PLANNER_CLEARANCE_M], metavar="M"),
+    Opt("--stride-m", "float", "stand the LiDAR on the drivable cells every this many metres", unit="m", lo=0.01,
+        hi=100.0, default=0.1, metavar="M"),
+    Opt("--png", "out_file", "draw the drivable cells and what no station sees, for the first clearance",
+        metavar="FILE"),
+    JSON, QUIET,
+)
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--map", default="cave:1",
-                   help="PATH.yaml (ROS map_server), cave:SEED[:WxH] or tunnel:SEED[:WxH] (default %(default)s)")
-    p.add_argument("--clearance-m", type=float, nargs="+", default=[PLANNER_CLEARANCE_M], metavar="M",
-                   help="the planner's distance from wall cells, one or more (default: the firmware's robot "
-                        "radius plus safety margin, %(default)s)")
-    p.add_argument("--stride-m", type=float, default=0.1,
-                   help="stand the LiDAR on the drivable cells every this many metres (default %(default)s)")
-    p.add_argument("--png", type=Path, default=None, metavar="FILE",
-                   help="draw the drivable cells and what no station sees, for the first clearance")
-    p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_options(p, OPTIONS)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -51,12 +53,18 @@ def main(args: argparse.Namespace) -> int:
         if args.png is not None and not results:
             from host_tools.plots import plot_unobservable
 
-            plot_unobservable(occ, drivable_centres(occ, (start[0], start[1]), clearance_m), unseen,
-                              f"{label}: clearance {clearance_m} m sees {100 * share.observable_share:.2f} % of the "
-                              f"reachable area; red: {share.unobservable_m2:.2f} m² seen from nowhere", args.png)
+            try:
+                with atomic_path(args.png) as tmp:
+                    plot_unobservable(occ, drivable_centres(occ, (start[0], start[1]), clearance_m), unseen,
+                                      f"{label}: clearance {clearance_m} m sees {100 * share.observable_share:.2f} % "
+                                      f"of the reachable area; red: {share.unobservable_m2:.2f} m² seen from nowhere",
+                                      tmp)
+            except OSError as exc:
+                print(f"lorascout map: cannot write {args.png}: {exc}", file=sys.stderr)
+                return 1
         results.append(share)
     if args.json:
-        print(json.dumps({"map": label, "resolution_m": occ.resolution_m, "body_radius_m": world.robot_radius_m,
+        print(strict_dumps({"map": label, "resolution_m": occ.resolution_m, "body_radius_m": world.robot_radius_m,
                           "lidar_beams": world.lidar_beams, "lidar_range_m": world.lidar_range_m,
                           "clearances": [r.to_json() for r in results]}, sort_keys=True))
         return 0

@@ -8,17 +8,23 @@ import sys
 import time
 
 from hal.lora import PROFILES, profile as radio_profile
+from host_tools.options import SEED_MAX, Opt, add_options
 
 # With no occupancy map every modem is in range of every other; they stand a few metres
 # apart on a line so received powers differ the way they would on a bench.
 _SPACING_M = 2.0
 
 
+OPTIONS = (
+    Opt("--count", "int", "number of modems", unit="modems", lo=1, hi=64, default=2),
+    Opt("--radio", "choice", "radio profile the channel carries", choices=lambda: sorted(PROFILES),
+        default="eu868-g3"),
+    Opt("--seed", "int", "channel random seed", lo=0, hi=SEED_MAX, default=0),
+)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--count", type=int, default=2, help="number of modems (default 2)")
-    parser.add_argument("--radio", default="eu868-g3", choices=sorted(PROFILES),
-                        help="radio profile the channel carries (default eu868-g3)")
-    parser.add_argument("--seed", type=int, default=0, help="channel random seed (default 0)")
+    add_options(parser, OPTIONS)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -26,9 +32,6 @@ def main(args: argparse.Namespace) -> int:
     from radio_sim.rn2483 import on_air_settings
     from radio_sim.virtual_modem import ModemBank
 
-    if not 1 <= args.count <= 64:
-        print(f"lorascout modem: --count must be 1..64, got {args.count}", file=sys.stderr)
-        return 2
     prof = radio_profile(args.radio)
     try:
         on_air_settings(prof)

@@ -2,95 +2,104 @@
 from __future__ import annotations
 
 import argparse
-import json
-import math
+import signal
 import sys
-from pathlib import Path
+import threading
 
-from hal.lora import PROFILES
-from hal.sim.odometry import FRAMES
 from host_tools.mission import MissionConfig, run_mission
-from host_tools.overrides import describe, parse_overrides, params_with
+from host_tools.options import FRAMES, JSON, MAP, MAX_SIM_S, QUIET, RADIO, ROBOTS, SCHEME, SEED, SET, Opt, add_options
+from host_tools.overrides import combine_overrides, describe, params_help, params_with
 from host_tools.progress import progress_bar
-from host_tools.scheme_option import add_scheme_option
+from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, strict_dumps, write_text
 
-DEFAULT_MAP = "cave:1"
+EXIT_INTERRUPTED = 130      # 128 + SIGINT, as a shell reports a command Ctrl-C ended
+
+OPTIONS = (
+    MAP, ROBOTS, SEED, MAX_SIM_S, RADIO, SCHEME, FRAMES,
+    Opt("--serial-radio", "flag", "drive every robot's radio through a virtual RN2483 modem on a pseudo-terminal"),
+    Opt("--capture", "out_file", "record every frame on the air (for lorascout inspect)", metavar="FILE"),
+    Opt("--start", "pose", "start pose in metres (and degrees; default the map's yaw): once, the centre of the "
+        "team's staging area (default: the map's start); once per robot, each robot's own start",
+        repeat=True, metavar="X,Y[,YAW_DEG]"),
+    SET, JSON,
+    Opt("--out", "out_dir", "write mission.png and mission.json here (each replaced only by a complete new one)",
+        metavar="DIR"),
+    QUIET,
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--map", default=DEFAULT_MAP,
-                   help="PATH.yaml (ROS map_server), cave:SEED[:WxH] or tunnel:SEED[:WxH] (default %(default)s)")
-    p.add_argument("--robots", type=int, default=1, help="team size (default %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="mission seed: same seed, same result (default %(default)s)")
-    p.add_argument("--max-sim-s", type=float, default=14400.0, help="simulated time limit in seconds (default %(default)s)")
-    p.add_argument("--radio", default="ideal-100Bps", choices=sorted(PROFILES), help="radio profile (default %(default)s)")
-    add_scheme_option(p, default="greedy")
-    p.add_argument("--frames", choices=FRAMES, default="shared",
-                   help="odometry frames: one shared by the team (start poses measured at deployment), or each "
-                        "robot's own, unknown to the others (default %(default)s)")
-    p.add_argument("--serial-radio", action="store_true",
-                   help="drive every robot's radio through a virtual RN2483 modem on a pseudo-terminal")
-    p.add_argument("--capture", type=Path, default=None, metavar="FILE",
-                   help="record every frame on the air (for lorascout inspect)")
-    p.add_argument("--start", type=_pose, action="append", default=[], metavar="X,Y[,YAW_DEG]",
-                   help="start pose in metres (and degrees; default the map's yaw): once, the centre of the team's "
-                        "staging area (default: the map's start); once per robot, each robot's own start")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="overrides",
-                   help="change an explorer parameter (firmware/params.py); repeatable")
-    p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR", help="write mission.png and mission.json here")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-
-
-def _pose(text: str) -> tuple[float, float, float | None]:
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
-        raise argparse.ArgumentTypeError(f"expected X,Y or X,Y,YAW_DEG as numbers, got {text!r}")
-    return (values[0], values[1], math.radians(values[2]) if len(values) == 3 else None)
+    add_options(p, OPTIONS)
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.epilog = params_help()
 
 
 def main(args: argparse.Namespace) -> int:
-    if args.robots < 1:
-        print("lorascout run: --robots must be at least 1", file=sys.stderr)
+    # Everything that can be refused is refused before the mission starts.
+    try:
+        overrides = combine_overrides(args.overrides)
+        if len(args.start) not in (0, 1, args.robots):
+            raise ValueError(f"--start given {len(args.start)} times: give it once (the staging area) or once per "
+                             f"robot ({args.robots}, from --robots)")
+        outputs = [] if args.out is None else [check_out_file(args.out / n) for n in ("mission.png", "mission.json")]
+    except (ValueError, OutputPathError) as exc:
+        print(f"lorascout run: {exc}", file=sys.stderr)
         return 2
     cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
                         max_sim_s=args.max_sim_s, radio=args.radio, starts=tuple(args.start),
                         strategy=args.strategy, frames=args.frames, serial_radio=args.serial_radio,
                         capture_path=None if args.capture is None else str(args.capture))
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
-    state = {"last": 0.0}
+    state = {"last": 0.0, "stop": False}
 
     def progress(sim_s: float, coverage: float) -> None:
         bar.update(sim_s - state["last"])
         state["last"] = sim_s
         bar.set_postfix(coverage=f"{coverage:.3f}")
 
+    def on_sigint(signum, frame) -> None:
+        # The first Ctrl-C ends the mission at the next tick, with a report; a second one
+        # stops at once (KeyboardInterrupt).
+        state["stop"] = True
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, on_sigint) if in_main_thread else None
     try:
-        overrides = parse_overrides(args.overrides)
-        result = run_mission(cfg, progress, params=params_with(overrides))
+        result = run_mission(cfg, progress, params=params_with(overrides), should_stop=lambda: state["stop"])
     except (ValueError, KeyError, OSError) as exc:
         bar.close()
         print(f"lorascout run: {exc}", file=sys.stderr)
         return 2
+    finally:
+        if in_main_thread:
+            signal.signal(signal.SIGINT, previous)
     bar.close()
     report = result.to_json()
     report["params_overrides"] = dict(overrides)
     report["coverage_within_planner_clearance"] = _within_clearance(result)
+    interrupted = result.termination == "interrupted"
+    # The report is printed before the files are written: if writing fails, it is not lost.
+    if args.json:
+        print(strict_dumps(report, sort_keys=True), flush=True)
+    else:
+        print(format_summary(report), flush=True)
     if args.out is not None:
         from host_tools.plots import plot_mission
 
-        args.out.mkdir(parents=True, exist_ok=True)
-        plot_mission(result, args.out / "mission.png")
-        (args.out / "mission.json").write_text(json.dumps(report, indent=2) + "\n")
-    if args.json:
-        print(json.dumps(report, sort_keys=True))
-    else:
-        print(format_summary(report))
-        if args.out is not None:
-            print(f"wrote {args.out / 'mission.png'} and {args.out / 'mission.json'}")
+        try:
+            with atomic_path(outputs[0]) as tmp:
+                plot_mission(result, tmp)
+            write_text(outputs[1], strict_dumps(report, indent=2) + "\n")
+        except OSError as exc:
+            print(f"lorascout run: cannot write the report into {args.out}: {exc}", file=sys.stderr)
+            return 1
+        if not args.json:
+            print(f"wrote {outputs[0]} and {outputs[1]}")
+    if interrupted:
+        print(f"lorascout run: interrupted after {report['t_total_s']:.1f} s simulated; the report is partial",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
     return 0
 
 

@@ -3,53 +3,97 @@
 from __future__ import annotations
 
 import argparse
-import json
+import contextlib
 import os
+import re
+import signal
 import sys
+import threading
 from pathlib import Path
 
-from hal.lora import PROFILES
-from host_tools.overrides import parse_overrides
+from host_tools.options import (MAX_SIM_S, QUIET, RADIO, ROBOTS, SCHEMES, SEED_MAX, SET, Opt, add_options,
+                                with_default)
+from host_tools.overrides import combine_overrides, params_help
 from host_tools.progress import progress_bar
-from host_tools.scheme_option import add_schemes_option
-from host_tools.sweep import (PARTIAL_NAME, WRITTEN, SweepSpec, code_fingerprint, load_partial, markdown, run_local,
-                               run_ray, save, trial_key)
+from host_tools.safe_io import strict_dumps, write_text
+from host_tools.sweep import (PARTIAL_NAME, WRITTEN, SweepSpec, code_fingerprint, load_partial, markdown, probe_ray,
+                               run_local, run_ray, save, trial_key)
+
+EXIT_INTERRUPTED = 130
+OLD_PARTIAL_NAME = PARTIAL_NAME + ".old"     # where --overwrite moves an earlier grid's trials
+
+OPTIONS = (
+    Opt("--maps", "map", "map specs (PATH.yaml, cave:SEED[:WxH], tunnel:SEED[:WxH])", nargs="+", required=True,
+        metavar="MAP"),
+    SCHEMES,
+    with_default(ROBOTS, 5),
+    Opt("--seeds", "int", "trials per map and strategy (seeds FIRST..FIRST+N-1)", lo=1, hi=100_000, default=10),
+    Opt("--first-seed", "int", "the first trial's seed", lo=0, hi=SEED_MAX, default=0, metavar="FIRST"),
+    RADIO,
+    Opt("--also-radio", "choice", "repeat the trials of the strategies that use the LoRa link (greedy, minpos) on "
+        "these profiles and tabulate what they cost against --radio", nargs="+", choices=RADIO.choices, default=[],
+        metavar="PROFILE"),
+    MAX_SIM_S, SET,
+    Opt("--jobs", "int", "local worker processes", lo=1, hi=256, default=os.cpu_count() or 1),
+    Opt("--ray", "address", "run on a Ray cluster instead: 'local' starts one here, 'auto' finds one, or "
+        "HOST:PORT (refused at once if nothing answers there)", metavar="ADDRESS"),
+    Opt("--out", "out_dir", "where tables and figures go", default="out/sweep", metavar="DIR"),
+    Opt("--resume", "flag", f"keep the trials an interrupted run of the same sweep finished (OUT/{PARTIAL_NAME}) "
+        "with the same code (firmware, HAL, world, radio, mission) and run only the rest"),
+    Opt("--overwrite", "flag", f"start the grid again in an OUT that holds one: its trials file is moved to "
+        f"OUT/{OLD_PARTIAL_NAME} (replacing an older one there), its tables are replaced when the new ones are "
+        "written"),
+    Opt("--tables-of-code", "text", f"run nothing: tabulate the grid's trials in OUT/{PARTIAL_NAME} that ran the "
+        "code whose fingerprint (code_sha256) starts with this, e.g. an older grid after a change to the tables; "
+        "every trial of the grid must be there", metavar="FINGERPRINT"),
+    QUIET,
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--maps", nargs="+", required=True, help="map specs (PATH.yaml, cave:SEED, tunnel:SEED)")
-    add_schemes_option(p)
-    p.add_argument("--robots", type=int, default=5)
-    p.add_argument("--seeds", type=int, default=10, help="trials per map and strategy (seeds 0..N-1)")
-    p.add_argument("--first-seed", type=int, default=0)
-    p.add_argument("--radio", default="ideal-100Bps", choices=sorted(PROFILES))
-    p.add_argument("--also-radio", nargs="+", default=[], choices=sorted(PROFILES), metavar="PROFILE",
-                   help="repeat the trials of the strategies that use the LoRa link (greedy, minpos) on "
-                        "these profiles and tabulate what they cost against --radio")
-    p.add_argument("--max-sim-s", type=float, default=14400.0)
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="overrides",
-                   help="change an explorer parameter (firmware/params.py) for every trial; repeatable. "
-                        "Recorded with each trial and in the tables")
-    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="local worker processes (default: cores)")
-    p.add_argument("--ray", default=None, metavar="ADDRESS",
-                   help="run on a Ray cluster instead ('local' starts one here)")
-    p.add_argument("--out", type=Path, default=Path("out/sweep"), help="where tables and figures go")
-    p.add_argument("--resume", action="store_true",
-                   help=f"keep the trials an interrupted run of the same sweep finished (OUT/{PARTIAL_NAME}) "
-                        "with the same code (firmware, HAL, world, radio, mission) and run only the rest")
-    p.add_argument("--tables-of-code", default=None, metavar="FINGERPRINT",
-                   help=f"run nothing: tabulate the grid's trials in OUT/{PARTIAL_NAME} that ran the code "
-                        "whose fingerprint (code_sha256) starts with this, e.g. an older grid after a change "
-                        "to the tables; every trial of the grid must be there")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_options(p, OPTIONS)
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.epilog = params_help()
+
+
+@contextlib.contextmanager
+def _ctrl_c_deferred():
+    """SIGINT held back (delivered when the block ends), in the main thread."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _existing_grid(out: Path) -> str | None:
+    """What in OUT belongs to an earlier grid, or None."""
+    partial = out / PARTIAL_NAME
+    if partial.is_file() and partial.stat().st_size > 0:
+        with open(partial, "rb") as f:
+            lines = sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(1 << 20), b""))
+        return f"{lines} trials in {partial}"
+    if (out / "tables.json").exists():
+        return f"the tables in {out / 'tables.json'}"
+    return None
 
 
 def main(args: argparse.Namespace) -> int:
-    if args.robots < 1 or args.seeds < 1:
-        print("lorascout sweep: --robots and --seeds must be at least 1", file=sys.stderr)
-        return 2
+    # Everything that can be refused is refused before any file is touched or trial run.
     try:
-        overrides = parse_overrides(args.overrides)
+        overrides = combine_overrides(args.overrides)
+        last_seed = args.first_seed + args.seeds - 1
+        if last_seed > SEED_MAX:
+            raise ValueError(f"--first-seed {args.first_seed} with --seeds {args.seeds} reaches seed {last_seed}; "
+                             f"seeds go up to {SEED_MAX}")
+        if args.resume and args.overwrite:
+            raise ValueError("--resume keeps the earlier trials and --overwrite starts again: give one of them")
+        if args.tables_of_code is not None and not re.fullmatch(r"[0-9a-fA-F]{8,64}", args.tables_of_code):
+            raise ValueError(f"--tables-of-code {args.tables_of_code!r}: needs at least 8 hex digits of a "
+                             "fingerprint (code_sha256)")
     except ValueError as exc:
         print(f"lorascout sweep: {exc}", file=sys.stderr)
         return 2
@@ -60,6 +104,18 @@ def main(args: argparse.Namespace) -> int:
     wanted = {trial_key(c, overrides) for c in trials}
     if args.tables_of_code is not None:
         return _tabulate_earlier(args.out, spec, wanted, args.tables_of_code)
+    if args.ray not in (None, "local"):
+        try:
+            probe_ray(args.ray)
+        except RuntimeError as exc:
+            print(f"lorascout sweep: {exc}; nothing was run or changed", file=sys.stderr)
+            return 2
+    earlier_grid = _existing_grid(args.out)
+    if earlier_grid is not None and not (args.resume or args.overwrite):
+        print(f"lorascout sweep: {args.out} already holds a grid ({earlier_grid}); nothing was changed. Give "
+              f"--resume to keep its trials and run only the rest, or --overwrite to start again (its trials "
+              f"file is kept as {OLD_PARTIAL_NAME})", file=sys.stderr)
+        return 2
     try:
         kept = load_partial(args.out) if args.resume else []
         code = code_fingerprint()
@@ -75,25 +131,36 @@ def main(args: argparse.Namespace) -> int:
         print(f"resuming: {len(earlier)} trials done earlier, {len(todo)} to run"
               + (f" ({other_code} earlier trials ran other code and are run again)" if other_code else ""),
               file=sys.stderr)
-    args.out.mkdir(parents=True, exist_ok=True)
+    partial_path = args.out / PARTIAL_NAME
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+        if args.resume:
+            # Rewritten whole, atomically: a line cut short is gone, not appended to.
+            write_text(partial_path, "".join(strict_dumps(r, sort_keys=True) + "\n" for r in kept))
+        elif args.overwrite and partial_path.exists():
+            os.replace(partial_path, args.out / OLD_PARTIAL_NAME)
+        partial = open(partial_path, "a", encoding="utf-8")
+    except OSError as exc:
+        print(f"lorascout sweep: {exc}", file=sys.stderr)
+        return 2
     bar = progress_bar(len(todo), "sweep", "trial", args.quiet)
-    counted = {"n": 0}
-    # Each finished trial goes to disk at once: an interrupted sweep loses only what ran.
-    with open(args.out / PARTIAL_NAME, "w") as partial:
-        for report in kept:            # rewritten whole: a line cut short is gone, not appended to
-            partial.write(json.dumps(report, sort_keys=True) + "\n")
+    finished_now: list[dict] = []
+    # Each finished trial goes to disk at once: an interrupted sweep loses only what was running.
+    with partial:
         def finished(report: dict) -> None:
             # Stamped with the code read once at the start: the workers run that code, whatever
             # the files say by the time a trial ends.
             report["code_sha256"] = code
-            partial.write(json.dumps(report, sort_keys=True) + "\n")
-            partial.flush()
+            with _ctrl_c_deferred():      # a trial on disk is a trial counted, and the other way round
+                partial.write(strict_dumps(report, sort_keys=True) + "\n")
+                partial.flush()
+                os.fsync(partial.fileno())
+                finished_now.append(report)
             bar.update(1)
             if bar.disable and not args.quiet:
                 # No terminal (a grid left running for hours with its output in a log): a line
                 # per trial instead of the bar.
-                counted["n"] += 1
-                print(f"trial {counted['n']}/{len(todo)}: {report['strategy']} on {report['map']} seed "
+                print(f"trial {len(finished_now)}/{len(todo)}: {report['strategy']} on {report['map']} seed "
                       f"{report['seed']} ({report['radio']}): p_max {max(report['path_length_m']):.0f} m, "
                       f"coverage {report['coverage']:.4f}, {report['termination']}, {report['wall_s']:.0f} s",
                       file=sys.stderr, flush=True)
@@ -103,9 +170,13 @@ def main(args: argparse.Namespace) -> int:
                 results = run_ray(todo, None if args.ray == "local" else args.ray, finished, overrides)
             else:
                 results = run_local(todo, args.jobs, finished, overrides)
+        except KeyboardInterrupt:
+            bar.close()
+            return _interrupted(args.out, spec, earlier + finished_now, len(finished_now), len(todo))
         except (ValueError, KeyError, OSError, RuntimeError) as exc:
             bar.close()
-            print(f"lorascout sweep: {exc}", file=sys.stderr)
+            print(f"lorascout sweep: {exc} ({len(finished_now)} trials finished and kept in {partial_path})",
+                  file=sys.stderr)
             return 2
     bar.close()
     t = save(args.out, spec, earlier + results)
@@ -114,11 +185,24 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
+def _interrupted(out: Path, spec: SweepSpec, results: list[dict], finished: int, todo: int) -> int:
+    """Ctrl-C: the finished trials are in the trials file already; the tables of what is there
+    are printed and written, marked as interrupted (no figures: they need every trial)."""
+    note = (f"INTERRUPTED: {finished} of the {todo} trials to run finished (kept in {out / PARTIAL_NAME}); "
+            "run the same command with --resume to run the rest")
+    print(f"lorascout sweep: {note}", file=sys.stderr)
+    if results:
+        try:
+            t = save(out, spec, results, interrupted=note)
+        except (OSError, ValueError) as exc:
+            print(f"lorascout sweep: could not write the partial tables: {exc}", file=sys.stderr)
+        else:
+            print(markdown(t))
+    return EXIT_INTERRUPTED
+
+
 def _tabulate_earlier(out: Path, spec: SweepSpec, wanted: set[tuple], fingerprint: str) -> int:
     """The tables of a grid whose trials all ran earlier, on the code `fingerprint` names."""
-    if len(fingerprint) < 8:
-        print("lorascout sweep: --tables-of-code needs at least 8 hex digits of a fingerprint", file=sys.stderr)
-        return 2
     try:
         kept = load_partial(out)
     except (ValueError, OSError) as exc:

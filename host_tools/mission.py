@@ -189,10 +189,14 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 params: ExplorationParams = ExplorationParams(),
                 rates: TaskRates = TaskRates(),
                 world_params: WorldParams = WorldParams(),
+                should_stop: Callable[[], bool] | None = None,
                 loss_rule: Callable[[int, int, bytes], bool] | None = None,
                 observer: Callable[[int, list[ExplorerAgent]], None] | None = None) -> MissionResult:
-    """One mission. loss_rule (radio_sim.channel.Channel) loses chosen receptions; observer
-    is called with the mission time and the agents once per simulated second (tests)."""
+    """One mission to completion, the time limit, or until `should_stop()` (asked once per
+    tick) says so: then it ends there, with termination "interrupted", and the result holds
+    everything up to that tick. loss_rule (radio_sim.channel.Channel) loses chosen
+    receptions; observer is called with the mission time and the agents once per simulated
+    second (tests)."""
     occ, start, label = resolve_map(cfg.map_spec)
     poses = start_poses(occ, start, cfg.starts, cfg.robots)
     world = World(occ, poses, cfg.seed, world_params)
@@ -227,17 +231,24 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         agent = ExplorerAgent(hal, params, rates, scheme, profile, team_size=cfg.robots)
         agent.setup()
         agents.append(agent)
+    completed = False
     try:
         result = _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh,
-                       progress, profiler, rates, observer)
+                       progress, profiler, rates, should_stop, observer)
         result.coverage_raw = float((world.observed_union() & reachable_raw).sum()) / int(reachable_raw.sum())
         result.start_poses = poses
+        completed = True
         return result
     finally:
         if bank is not None:
             bank.close()                    # closes the radios too
         if capture is not None:
-            capture.close()
+            # A mission that ended (an interrupted one too) puts its capture in place; one that
+            # failed leaves the file that was there before.
+            if completed:
+                capture.close()
+            else:
+                capture.abort()
 
 
 def start_poses(occ, map_start: Pose, starts: tuple[tuple[float, float, float | None], ...],
@@ -270,7 +281,7 @@ def _reachable_from(occ, poses: list[Pose], robot_radius_m: float | None = None)
 
 
 def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh, progress, profiler, rates,
-          observer):
+          should_stop=None, observer=None):
     reachable_cells = int(reachable.sum())
 
     tick_us = rates.tick_period_us
@@ -281,6 +292,7 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
     coverage = 0.0
     next_sample_us = 0
     ticks = 0
+    interrupted = False
     wall0 = time.perf_counter()
     while True:
         now = world.now_us
@@ -294,6 +306,9 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
                 observer(now, agents)
             next_sample_us += COVERAGE_SAMPLE_US
         if all(a.done for a in agents) or now >= max_us:
+            break
+        if should_stop is not None and should_stop():
+            interrupted = True
             break
         for agent in agents:
             if profiler is not None:
@@ -332,7 +347,7 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
         path_length_m=[float(world.path_length_m(i)) for i in range(cfg.robots)],
         t_total_s=world.now_us / 1e6,
         t_90_s=None if t_90_us is None else t_90_us / 1e6,
-        termination="complete" if all(a.done for a in agents) else "time_limit",
+        termination="complete" if all(a.done for a in agents) else "interrupted" if interrupted else "time_limit",
         wall_s=wall_s,
         sim_s=world.now_us / 1e6,
         ticks=ticks,

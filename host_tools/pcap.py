@@ -21,6 +21,7 @@ Timestamps are mission time (start of the transmission) from the Unix epoch.
 """
 from __future__ import annotations
 
+import math
 import os
 import struct
 from collections.abc import Iterable
@@ -41,12 +42,28 @@ _LORATAP = struct.Struct(">BBHIBBBBBBB")
 assert _LORATAP.size == LORATAP_HEADER_BYTES
 
 
+MAX_TIMESTAMP_US = (1 << 32) * 1_000_000 - 1     # pcap seconds are 32 bits
+
+
 def _rssi_code(rssi_dbm: float) -> int:
-    return max(0, min(255, round(rssi_dbm + RSSI_OFFSET_DB)))
+    """Saturating; an RSSI the receiver did not give (NaN) is written as the floor, -139 dBm."""
+    return max(0, min(255, round(rssi_dbm + RSSI_OFFSET_DB))) if math.isfinite(rssi_dbm) else 0
 
 
 def _snr_code(snr_db: float) -> int:
-    return max(-128, min(127, round(snr_db * 4))) & 0xFF
+    return (max(-128, min(127, round(snr_db * 4))) & 0xFF) if math.isfinite(snr_db) else 0
+
+
+def check_frame(start_us: int, freq_hz: int, bw_hz: int, sf: int) -> None:
+    """ValueError naming the field unless a frame fits a pcap record and a LoRaTap v0 header."""
+    if not 0 <= start_us <= MAX_TIMESTAMP_US:
+        raise ValueError(f"field 'start_us': {start_us} us is outside what pcap holds (0..{MAX_TIMESTAMP_US})")
+    if not 0 <= freq_hz <= 0xFFFFFFFF:
+        raise ValueError(f"field 'freq_hz': {freq_hz} Hz does not fit LoRaTap's 32 bits")
+    if bw_hz % 125_000 or not 0 < bw_hz // 125_000 <= 255:
+        raise ValueError(f"field 'bw_hz': bandwidth {bw_hz} Hz is not a multiple of 125 kHz (LoRaTap v0)")
+    if not 0 <= sf <= 255:
+        raise ValueError(f"field 'sf': {sf} does not fit a byte")
 
 
 def loratap_header(freq_hz: int, bw_hz: int, sf: int, rssi_dbm: float, snr_db: float,
@@ -107,7 +124,8 @@ def air_frame_packets(frames: Iterable[AirFrame], mode: str = "per-frame") -> It
 def _packets(frames: Iterable[AirFrame], mode: str) -> Iterable[tuple[int, bytes]]:
     for a in frames:
         if mode == "per-frame":
-            best = max(a.receptions, key=lambda r: (r.rssi_dbm, -r.receiver_id), default=None)
+            best = max(a.receptions, key=lambda r: (r.rssi_dbm if math.isfinite(r.rssi_dbm) else -math.inf,
+                                                    -r.receiver_id), default=None)
             rssi, snr = (best.rssi_dbm, best.snr_db) if best else (-float(RSSI_OFFSET_DB), 0.0)
             yield a.start_us, loratap_header(a.freq_hz, a.bw_hz, a.sf, rssi, snr) + a.payload
         else:
@@ -117,9 +135,23 @@ def _packets(frames: Iterable[AirFrame], mode: str) -> Iterable[tuple[int, bytes
 
 
 def write_pcap(out: str | os.PathLike | BinaryIO, frames: Iterable[AirFrame], mode: str = "per-frame") -> int:
-    """Write the frames as a LoRaTap pcap; returns the number of packets."""
-    packets = air_frame_packets(frames, mode)   # validates mode before the file is created
-    with PcapWriter(out) as w:
+    """Write the frames as a LoRaTap pcap; returns the number of packets. Every packet is
+    made before the file is touched, and a path is written atomically: a frame pcap cannot
+    carry leaves a file already there as it was."""
+    packets = list(air_frame_packets(frames, mode))
+    for ts, _ in packets:
+        if not 0 <= ts <= MAX_TIMESTAMP_US:
+            raise ValueError(f"pcap timestamps must lie in 0..{MAX_TIMESTAMP_US} us, got {ts}")
+    if hasattr(out, "write"):
+        return _write_packets(out, packets)   # type: ignore[arg-type]
+    from host_tools.safe_io import atomic_open
+
+    with atomic_open(out, "wb") as f:
+        return _write_packets(f, packets)
+
+
+def _write_packets(f: BinaryIO, packets: list[tuple[int, bytes]]) -> int:
+    with PcapWriter(f) as w:
         for ts, pkt in packets:
             w.write(ts, pkt)
         return w.packets

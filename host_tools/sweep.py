@@ -10,8 +10,8 @@ import json
 import math
 import multiprocessing
 import os
+import signal
 import statistics
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Iterable
@@ -25,6 +25,7 @@ from firmware.params import ExplorationParams
 from firmware.schemes import build as build_scheme
 from host_tools.mission import MissionConfig, run_mission
 from host_tools.overrides import Overrides, describe, params_with
+from host_tools.safe_io import atomic_open, atomic_path, strict_dumps, write_text
 
 # What save() writes into a sweep's folder, for the commands that report it.
 WRITTEN = "tables.md, tables.json, trials.csv, trials.jsonl, paths_*.png, paths_overview.png and p_max_by_trial.png"
@@ -145,9 +146,16 @@ def load_partial(out: Path) -> list[dict]:
 def _share_cores(threads: int) -> None:
     """Pool worker start-up: the firmware's parallel kernels get this worker's share of the
     cores, so that the workers do not crowd each other's threads off them. Thread counts do
-    not change results (the kernels' iterations write disjoint outputs)."""
+    not change results (the kernels' iterations write disjoint outputs). Ctrl-C is the
+    parent's to handle: it stops the workers."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     import numba
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+
+
+def _run_indexed(job: tuple[int, MissionConfig, Overrides]) -> tuple[int, dict]:
+    k, cfg, overrides = job
+    return k, run_trial(cfg, overrides)
 
 
 def run_local(trials: list[MissionConfig], jobs: int, on_done: Callable[[dict], None],
@@ -158,20 +166,54 @@ def run_local(trials: list[MissionConfig], jobs: int, on_done: Callable[[dict], 
             results[k] = run_trial(cfg, overrides)
             on_done(results[k])
         return results  # type: ignore[return-value]
+    if not trials:
+        return []
     threads = max(1, (os.cpu_count() or 1) // jobs)
     # Spawned, not forked: a process that has run a parallel kernel holds a thread pool
     # (OpenMP on Linux) that does not survive fork(), and the child would abort.
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                             initializer=_share_cores, initargs=(threads,)) as pool:
-        futures = {pool.submit(run_trial, cfg, overrides): k for k, cfg in enumerate(trials)}
-        for f in as_completed(futures):
-            results[futures[f]] = f.result()
-            on_done(results[futures[f]])
+    pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(trials)), initializer=_share_cores,
+                                                     initargs=(threads,))
+    try:
+        for k, report in pool.imap_unordered(_run_indexed, [(k, cfg, overrides) for k, cfg in enumerate(trials)]):
+            results[k] = report
+            on_done(report)
+        pool.close()
+    except BaseException:
+        # Ctrl-C or a failed trial: the trials still running are stopped, not waited for
+        # (the finished ones went to on_done already).
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
     return results  # type: ignore[return-value]
 
 
-def run_ray(trials: list[MissionConfig], address: str, on_done: Callable[[dict], None],
+RAY_CONNECT_TIMEOUT_S = 6.0
+
+
+def probe_ray(address: str, timeout_s: float = RAY_CONNECT_TIMEOUT_S) -> None:
+    """RuntimeError unless a Ray cluster at `address` accepts a driver within `timeout_s`.
+    ray.init() itself waits without a bound on an address that accepts connections but is no
+    Ray head, so it is tried first in a child process that can be stopped."""
+    import subprocess
+    import sys
+
+    code = ("import sys, ray; ray.init(address=sys.argv[1], log_to_driver=False, logging_level='ERROR'); "
+            "ray.shutdown()")
+    try:
+        done = subprocess.run([sys.executable, "-c", code, address], capture_output=True, text=True,
+                              timeout=timeout_s, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        raise RuntimeError(f"--ray {address}: no Ray cluster answered within {timeout_s:g} s") from None
+    if done.returncode != 0:
+        last = (done.stderr.strip().splitlines() or ["exit status %d" % done.returncode])[-1]
+        raise RuntimeError(f"--ray {address}: cannot join the Ray cluster there ({last})")
+
+
+def run_ray(trials: list[MissionConfig], address: str | None, on_done: Callable[[dict], None],
             overrides: Overrides = ()) -> list[dict]:
+    """The trials on a Ray cluster: None starts a local one, an address joins one (check it
+    first with probe_ray: ray.init may wait for ever on a wrong one)."""
     try:
         import ray
     except ImportError:
@@ -182,11 +224,19 @@ def run_ray(trials: list[MissionConfig], address: str, on_done: Callable[[dict],
     index = {ref: k for k, ref in enumerate(refs)}
     results: list[dict | None] = [None] * len(trials)
     pending = list(refs)
-    while pending:
-        done, pending = ray.wait(pending, num_returns=1)
-        for ref in done:
-            results[index[ref]] = ray.get(ref)
-            on_done(results[index[ref]])
+    try:
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            for ref in done:
+                results[index[ref]] = ray.get(ref)
+                on_done(results[index[ref]])
+    except BaseException:
+        for ref in pending:
+            try:
+                ray.cancel(ref, force=True)
+            except Exception:     # cancelling is best effort: the cluster may be gone
+                pass
+        raise
     return results  # type: ignore[return-value]
 
 
@@ -376,6 +426,8 @@ def markdown(t: dict) -> str:
             lines.append(f"| {c['radio']} | {c['map']} | {c['strategy']} | {c['p_max_m']:.1f} | {ref} | "
                          f"{c['coverage_min']:.4f}, {c['complete']}/{c['trials']} | {lost} | "
                          f"{100 * c['duty_cycle_worst_hour']:.2f} % | {c['duty_cycle_violations']} |")
+    if t.get("interrupted"):
+        lines = [f"**{t['interrupted']}**", ""] + lines
     sf = t["shortfalls"]
     lines += ["", f"Trials that covered less than {sf['coverage_target']} or did not end with every robot "
               f"stopping by itself: {len(sf['short'])} of {sf['trials']}" + (":" if sf["short"] else ".")]
@@ -387,12 +439,17 @@ def markdown(t: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def save(out: Path, spec: SweepSpec, results: list[dict]) -> dict:
+def save(out: Path, spec: SweepSpec, results: list[dict], interrupted: str | None = None) -> dict:
+    """Write the tables, the trials and the figures into `out`, each file atomically. An
+    interrupted grid (`interrupted` says how far it got) gets its tables marked so and no
+    figures: they need every map and strategy."""
     out.mkdir(parents=True, exist_ok=True)
     t = tables(spec, results)
-    (out / "tables.json").write_text(json.dumps(t, indent=2) + "\n")
-    (out / "tables.md").write_text(markdown(t))
-    with open(out / "trials.csv", "w", newline="") as f:
+    if interrupted:
+        t["interrupted"] = interrupted
+    write_text(out / "tables.json", strict_dumps(t, indent=2) + "\n")
+    write_text(out / "tables.md", markdown(t))
+    with atomic_open(out / "trials.csv", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["map", "strategy", "seed", "robots", "radio", "coverage", "termination", "t_total_s", "t_90_s",
                     "longest_path_m", "overlap", "radio_Bps_mean", "duty_cycle_violations"])
@@ -401,9 +458,11 @@ def save(out: Path, spec: SweepSpec, results: list[dict]) -> dict:
                         r["t_total_s"], r["t_90_s"], max(r["path_length_m"]), r["overlap"],
                         round(float(np.mean(r["radio_stats"]["bytes_per_s_mean"])), 3),
                         r["radio_stats"]["duty_cycle_violations"]])
-    with open(out / "trials.jsonl", "w") as f:
+    with atomic_open(out / "trials.jsonl", "w") as f:
         for r in sorted(results, key=lambda r: (r["radio"], r["map_spec"], r["strategy"], r["seed"])):
-            f.write(json.dumps({k: v for k, v in r.items() if k != "paths_xy"}, sort_keys=True) + "\n")
+            f.write(strict_dumps({k: v for k, v in r.items() if k != "paths_xy"}, sort_keys=True) + "\n")
+    if interrupted:
+        return t
     from host_tools.plots import plot_sweep_overview, plot_sweep_p_max, plot_sweep_paths
     from world_sim.map_spec import resolve_map
 
@@ -416,9 +475,12 @@ def save(out: Path, spec: SweepSpec, results: list[dict]) -> dict:
             first = min(trials, key=lambda r: r["seed"])
             firsts.append(first)
             by_strategy[s] = [max(r["path_length_m"]) for r in trials]
-            plot_sweep_paths(occ, label, first, out / f"paths_{Path(first['map']).stem.replace(':', '_')}_{s}.png")
+            with atomic_path(out / f"paths_{Path(first['map']).stem.replace(':', '_')}_{s}.png") as tmp:
+                plot_sweep_paths(occ, label, first, tmp)
         rows.append((occ, label, firsts))
         longest.append(by_strategy)
-    plot_sweep_overview(rows, out / "paths_overview.png")
-    plot_sweep_p_max([label for _, label, _ in rows], list(spec.strategies), longest, spec.radio, out / "p_max_by_trial.png")
+    with atomic_path(out / "paths_overview.png") as tmp:
+        plot_sweep_overview(rows, tmp)
+    with atomic_path(out / "p_max_by_trial.png") as tmp:
+        plot_sweep_p_max([label for _, label, _ in rows], list(spec.strategies), longest, spec.radio, tmp)
     return t

@@ -1,9 +1,11 @@
-"""Fuzz decode_frame with >= 100 000 random and mutated frames: it never raises, and every
-rejection is counted under one of the fixed reasons, each of which must show up."""
+"""Fuzz decode_frame with >= 100 000 random and mutated frames (10^6 with `pytest --slow`): it
+never raises, and every rejection is counted under one of the fixed reasons, each of which
+must show up."""
 import time
 from collections import Counter
 
 import numpy as np
+import pytest
 
 from firmware.comms.codec import REASONS, Reason
 from firmware.comms.frame import decode_frame, encode_frame_records, seal
@@ -11,6 +13,7 @@ from firmware.comms.schema import RECORD_TYPES
 from world_sim.seeding import stream
 
 N_PER_CLASS = 12_800          # 8 classes -> 102 400 frames
+N_PER_CLASS_SLOW = 125_000    # 8 classes -> 1 000 000 frames
 
 
 def _valid_frames(rng: np.random.Generator, n: int) -> list[bytes]:
@@ -37,9 +40,8 @@ def _split(buf: np.ndarray, lengths: np.ndarray) -> list[bytes]:
     return [blob[s:e] for s, e in zip(starts.tolist(), ends.tolist())]
 
 
-def build_corpus(seed: int = 1) -> dict[str, list[bytes]]:
+def build_corpus(seed: int = 1, n: int = N_PER_CLASS) -> dict[str, list[bytes]]:
     rng = stream(seed, "test.comms.fuzz")
-    n = N_PER_CLASS
     base = _valid_frames(rng, 512)
     pick = rng.integers(len(base), size=(6, n))
     corpus: dict[str, list[bytes]] = {}
@@ -97,9 +99,18 @@ def build_corpus(seed: int = 1) -> dict[str, list[bytes]]:
 
 
 def test_fuzz_decode_frame_counts_every_rejection():
-    corpus = build_corpus()
+    _fuzz(N_PER_CLASS, 100_000)
+
+
+@pytest.mark.slow
+def test_fuzz_decode_frame_with_a_million_frames():
+    _fuzz(N_PER_CLASS_SLOW, 1_000_000)
+
+
+def _fuzz(n_per_class: int, at_least: int) -> None:
+    corpus = build_corpus(n=n_per_class)
     total = sum(len(v) for v in corpus.values())
-    assert total >= 100_000
+    assert total >= at_least
     per_class: dict[str, Counter] = {}
     t0 = time.perf_counter()
     for name, frames in corpus.items():
@@ -114,7 +125,7 @@ def test_fuzz_decode_frame_counts_every_rejection():
     assert set(hist) <= set(REASONS)
     missing = set(REASONS) - set(hist)
     assert not missing, f"reasons never produced: {missing}"
-    assert per_class["valid"] == Counter({Reason.OK: N_PER_CLASS})
+    assert per_class["valid"] == Counter({Reason.OK: n_per_class})
     assert Reason.OK not in per_class["bit_flips"]        # 0x8005 catches every 1- and 2-bit error
     assert Reason.OK not in per_class["extended"] and Reason.OK not in per_class["truncated"]
     assert set(per_class["extended"]) == {Reason.BAD_LENGTH}

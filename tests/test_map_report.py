@@ -97,13 +97,13 @@ def test_the_command_prints_a_table_json_and_a_figure(tmp_path, capsys):
     assert report["body_radius_m"] == 0.25 and report["lidar_range_m"] == 10.0
 
 
-def test_bad_input_is_refused_with_the_reason(tmp_path, capsys):
-    assert main(["map", "--map", str(tmp_path / "none.yaml"), "--quiet"]) == 2
-    assert "none.yaml" in capsys.readouterr().err
-    assert main(["map", "--map", "cave:4:40x40", "--clearance-m", "0", "--quiet"]) == 2
-    assert "must be positive" in capsys.readouterr().err
-    assert main(["map", "--map", "cave:4:40x40", "--clearance-m", "30", "--quiet"]) == 2
-    assert "no cell keeps 30.0 m" in capsys.readouterr().err
+def test_bad_input_is_refused_with_the_reason(tmp_path, cli):
+    r = cli("map", "--map", tmp_path / "none.yaml", "--quiet")
+    assert r.code == 2 and "argument --map" in r.err and "none.yaml: map YAML file not found" in r.err
+    r = cli("map", "--map", "cave:4:40x40", "--clearance-m", "0", "--quiet")
+    assert r.code == 2 and "argument --clearance-m: '0' is out of range; valid: 0 < M <= 10 m" in r.err
+    r = cli("map", "--map", "cave:4:40x40", "--clearance-m", "9", "--quiet")
+    assert r.code == 2 and "no cell keeps 9.0 m" in r.err
 
 
 def test_coverage_within_the_planners_clearance_leaves_out_rooms_it_cannot_enter():

@@ -484,3 +484,32 @@ def test_clearance_treats_outside_as_wall():
     clearance = clearance_field_m(occ.free, 1.0)
     assert clearance.max() == pytest.approx(0.5)
     assert ndimage.label(occ.free)[1] == 1
+
+
+def test_resolution_and_size_are_bounded_before_allocation(tmp_path):
+    """Issue 27: `resolution: 1e-9` asked for 149 GiB; an image's cells are counted from its
+    header, before its pixels are decoded, and the error estimates what it would cost."""
+    from PIL import Image
+
+    from world_sim.ros_map import MAX_CELLS
+
+    fields = "origin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    Image.new("L", (20, 20), 254).save(tmp_path / "small.png")
+    for resolution in ("1e-9", "0.001", "5"):
+        (tmp_path / "r.yaml").write_text(f"image: small.png\nresolution: {resolution}\n{fields}")
+        with pytest.raises(MapFormatError, match=r"r.yaml:2: field 'resolution': .* m per cell is outside 0.01..1 m"):
+            load_ros_map(tmp_path / "r.yaml")
+    Image.new("1", (9000, 8000), 1).save(tmp_path / "big.png")
+    assert 9000 * 8000 > MAX_CELLS
+    (tmp_path / "big.yaml").write_text(f"image: big.png\nresolution: 0.05\n{fields}")
+    with pytest.raises(MapFormatError) as info:
+        load_ros_map(tmp_path / "big.yaml")
+    msg = str(info.value)
+    assert msg.startswith("big.yaml:1: field 'image':") and "9000 x 8000 pixels (450 x 400 m" in msg
+    assert "72000000 cells" in msg and "GiB for one robot" in msg and f"at most {MAX_CELLS} cells" in msg
+
+
+def test_deeply_nested_yaml_is_an_error_not_a_crash(tmp_path):
+    (tmp_path / "deep.yaml").write_text("image: " + "[" * 50_000 + "\n")
+    with pytest.raises(MapFormatError, match="nested too deeply"):
+        load_ros_map(tmp_path / "deep.yaml")

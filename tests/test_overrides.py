@@ -31,7 +31,9 @@ def test_values_are_typed_by_the_parameter_sorted_and_the_last_one_counts():
     ("info_rays=1.5", "info_rays takes a int, not '1.5'"),
     ("presence_holds_target=maybe", "presence_holds_target takes a bool, not 'maybe'"),
     ("d_cam_m=far", "d_cam_m takes a float, not 'far'"),
-    ("d_cam_m=nan", "must be a finite number"),
+    ("d_cam_m=nan", "d_cam_m = nan is outside the valid range 0.5 <= d_cam_m <= 100 m"),
+    ("resolution_m=0", "resolution_m = 0.0 is outside the valid range 0.02 <= resolution_m <= 1 m"),
+    ("info_rays=0", "info_rays = 0 is outside the valid range 1 <= info_rays <= 4096 rays"),
 ])
 def test_bad_settings_say_which_and_why(item, says):
     with pytest.raises(ValueError, match=f"--set '{item}'") as err:
@@ -47,8 +49,10 @@ def test_run_applies_and_reports_them_and_rejects_bad_ones(capsys):
     changed = json.loads(capsys.readouterr().out)
     assert plain["params_overrides"] == {} and changed["params_overrides"] == {"d_cam_m": 3.0}
     assert changed["trajectory_sha256"] != plain["trajectory_sha256"]
-    assert main(argv + ["--set", "d_cam_m"]) == 2
-    assert "lorascout run: --set 'd_cam_m': expected NAME=VALUE" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as stop:
+        main(argv + ["--set", "d_cam_m"])
+    assert stop.value.code == 2
+    assert "argument --set: 'd_cam_m': expected NAME=VALUE" in capsys.readouterr().err
 
 
 def test_a_sweep_records_them_and_resumes_only_trials_with_the_same(tmp_path, capsys):
@@ -69,8 +73,10 @@ def test_a_sweep_records_them_and_resumes_only_trials_with_the_same(tmp_path, ca
     assert tables["table3_p_max"][0]["minpos"]["trials"] == 1
     assert main(variant) == 0
     assert "resuming: 1 trials done earlier, 0 to run" in capsys.readouterr().err
-    assert main(argv + ["--set", "nope=1"]) == 2
-    assert "lorascout sweep: --set 'nope=1': the explorer has no parameter 'nope'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as stop:
+        main(argv + ["--set", "nope=1"])
+    assert stop.value.code == 2
+    assert "argument --set: 'nope=1': the explorer has no parameter 'nope'" in capsys.readouterr().err
 
 
 def test_reports_from_before_overrides_existed_count_as_the_defaults():
@@ -79,3 +85,41 @@ def test_reports_from_before_overrides_existed_count_as_the_defaults():
            "max_sim_s": 20.0}
     assert trial_key(old) == trial_key(cfg)
     assert trial_key(old) != trial_key(cfg, (("d_cam_m", 3.0),))
+
+
+@pytest.mark.parametrize("items, says", [
+    (["logodds_min=5"], "logodds_min = 5.0 is outside the valid range -1000 <= logodds_min < 0 log-odds"),
+    (["logodds_max=0.1"], "logodds_occupied = 0.3 must be below logodds_max = 0.1"),
+    (["logodds_min=-1", "logodds_free=-2"], "logodds_min = -1 must be below logodds_free = -2"),
+    (["resolution_m=0.02", "d_local_m=100"], "window of 10000 x 10000 cells"),
+    (["recenter_distance_m=30"], "recenter_distance_m = 30 must be below d_local_m = 20"),
+])
+def test_parameters_are_checked_together_against_their_relations(items, says):
+    with pytest.raises(ValueError, match="--set ") as err:
+        parse_overrides(items)
+    assert says in str(err.value)
+
+
+def test_every_default_lies_in_its_declared_range():
+    from firmware.params import check_params
+    check_params(ExplorationParams())      # raises otherwise
+
+
+def test_help_and_readme_list_every_parameter_from_the_declaration(cli):
+    import dataclasses
+    from pathlib import Path
+
+    from host_tools.overrides import README_BLOCK, params_markdown
+    from host_tools.readme_sync import markers
+
+    names = [f.name for f in dataclasses.fields(ExplorationParams)]
+    for command in ("run", "sweep"):
+        helped = cli(command, "--help")
+        assert helped.code == 0
+        for name in names:
+            assert f" {name} " in helped.out, (command, name)
+    assert "0.02 <= resolution_m <= 1 m, default 0.1: cell size of the local dense map" in helped.out
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    begin, end = markers(README_BLOCK)
+    block = readme[readme.index(begin):readme.index(end)]
+    assert params_markdown() in block, "README's parameter table is stale: python -m host_tools.readme_sync"

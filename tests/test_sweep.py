@@ -190,5 +190,5 @@ def test_without_a_terminal_each_trial_is_a_line_on_stderr(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "trial 1/2: minpos on cave:4:40x40 seed 0 (ideal-100Bps): p_max " in err
     assert "trial 2/2: minpos on cave:4:40x40 seed 1 (ideal-100Bps): p_max " in err
-    assert main(argv + ["--quiet"]) == 0
+    assert main(argv + ["--quiet", "--overwrite"]) == 0
     assert "trial 1/2" not in capsys.readouterr().err

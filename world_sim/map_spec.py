@@ -37,23 +37,47 @@ class MapSpecError(ValueError):
     """A map spec string that names no map; the message says what is wrong and what is accepted."""
 
 
+SEED_MAX = 2**32 - 1
+
+
 def resolve_map(spec: str) -> tuple[OccupancyMap, Pose, str]:
     """(ground truth, start pose, label for reports) for a map spec string."""
+    text, kind = _spec_kind(spec)
+    if kind in _GENERATED_KINDS:
+        return _resolve_generated(text, kind)
+    from world_sim.ros_map import load_ros_map
+
+    occ = load_ros_map(text)
+    return occ, default_start(occ), Path(text).name
+
+
+def check_map_spec(spec: str) -> None:
+    """MapSpecError or MapFormatError (file, line, field) unless `spec` names a map: a ROS map
+    is loaded (its checks need the image), a generated one only parsed, not generated."""
+    text, kind = _spec_kind(spec)
+    if kind in _GENERATED_KINDS:
+        _parse_generated(text)
+    else:
+        from world_sim.ros_map import load_ros_map
+
+        load_ros_map(text)
+
+
+def _spec_kind(spec: str) -> tuple[str, str]:
+    """(stripped spec, 'cave', 'tunnel' or 'yaml')."""
     if not isinstance(spec, str) or not spec.strip():
         raise MapSpecError(f"empty map spec; {_SPEC_HELP}")
     text = spec.strip()
     kind = text.split(":", 1)[0].lower()
     if kind in _GENERATED_KINDS and ":" in text:
-        return _resolve_generated(text, kind)
+        return text, kind
     if text.lower().endswith((".yaml", ".yml")):
-        from world_sim.ros_map import load_ros_map
-
-        occ = load_ros_map(text)
-        return occ, default_start(occ), Path(text).name
+        return text, "yaml"
     raise MapSpecError(f"unrecognised map spec {spec!r}; {_SPEC_HELP}")
 
 
-def _resolve_generated(text: str, kind: str) -> tuple[OccupancyMap, Pose, str]:
+def _parse_generated(text: str) -> tuple[int, float, float]:
+    """(seed, width_m, height_m) of a cave:/tunnel: spec, checked."""
     from world_sim import procgen
 
     parts = text.split(":")
@@ -62,10 +86,12 @@ def _resolve_generated(text: str, kind: str) -> tuple[OccupancyMap, Pose, str]:
     seed_text = parts[1].strip()
     if not re.fullmatch(r"\d+", seed_text):
         raise MapSpecError(f"map spec {text!r}: seed {seed_text!r} is not a non-negative integer; {_SPEC_HELP}")
+    if len(seed_text) > 10 or int(seed_text) > SEED_MAX:
+        raise MapSpecError(f"map spec {text!r}: seed {seed_text} is out of range 0..{SEED_MAX}")
     seed = int(seed_text)
     width_m, height_m = DEFAULT_SIZE_M
     if len(parts) == 3:
-        match = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*[xX]\s*(\d+(?:\.\d+)?)\s*", parts[2])
+        match = re.fullmatch(r"\s*(\d{1,6}(?:\.\d{1,6})?)\s*[xX]\s*(\d{1,6}(?:\.\d{1,6})?)\s*", parts[2])
         if match is None:
             raise MapSpecError(f"map spec {text!r}: size {parts[2]!r} is not WxH in metres; {_SPEC_HELP}")
         width_m, height_m = float(match.group(1)), float(match.group(2))
@@ -75,6 +101,13 @@ def _resolve_generated(text: str, kind: str) -> tuple[OccupancyMap, Pose, str]:
                 raise MapSpecError(
                     f"map spec {text!r}: {name} {value:g} m is outside {lo:g}..{MAX_SIDE_M:g} m"
                 )
+    return seed, width_m, height_m
+
+
+def _resolve_generated(text: str, kind: str) -> tuple[OccupancyMap, Pose, str]:
+    from world_sim import procgen
+
+    seed, width_m, height_m = _parse_generated(text)
     generate = procgen.generate_cave if kind == "cave" else procgen.generate_tunnel
     occ, start = generate(seed, width_m=width_m, height_m=height_m)
     label = f"{kind}:{seed}:{width_m:g}x{height_m:g}"

@@ -32,6 +32,16 @@ _REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free
 _MODES = ("trinary", "scale", "raw")
 _EIGHT_CONNECTED = np.ones((3, 3), dtype=bool)
 
+# Bounds on what a map file may ask for, checked before anything is allocated. The lower
+# resolution bound keeps the robot disc (0.25 m) at most 25 cells across its radius; the cell
+# count keeps a mission's per-cell grids (ground truth, walls, clearance, what each robot
+# saw, the reachable areas: about BYTES_PER_CELL bytes for one robot) within a few GiB.
+RESOLUTION_MIN_M = 0.01
+RESOLUTION_MAX_M = 1.0
+MAX_CELLS = 64_000_000
+BYTES_PER_CELL = 24
+MAX_YAML_BYTES = 1 << 20
+
 
 class MapFormatError(ValueError):
     """A map file that cannot be turned into ground truth; the message names file, line, field."""
@@ -42,7 +52,14 @@ def load_ros_map(yaml_path: str | os.PathLike) -> OccupancyMap:
     path = Path(yaml_path)
     where = path.name
     try:
-        text = path.read_text(encoding="utf-8")
+        if path.is_dir():
+            raise MapFormatError(f"{path}: cannot read map YAML: it is a folder")
+        with open(path, "rb") as f:
+            data = f.read(MAX_YAML_BYTES + 1)
+        if len(data) > MAX_YAML_BYTES:
+            raise MapFormatError(f"{path}: map YAML is longer than {MAX_YAML_BYTES} bytes; a map_server YAML "
+                                 "is a few lines")
+        text = data.decode("utf-8")
     except FileNotFoundError:
         raise MapFormatError(f"{path}: map YAML file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -50,6 +67,11 @@ def load_ros_map(yaml_path: str | os.PathLike) -> OccupancyMap:
 
     fields = _parse_yaml_fields(text, where)
     resolution_m = _positive_number(fields, "resolution", where)
+    if not RESOLUTION_MIN_M <= resolution_m <= RESOLUTION_MAX_M:
+        raise MapFormatError(
+            f"{where}:{fields['resolution'][1]}: field 'resolution': {resolution_m:g} m per cell is outside "
+            f"{RESOLUTION_MIN_M:g}..{RESOLUTION_MAX_M:g} m"
+        )
     origin_x_m, origin_y_m = _origin(fields, where)
     negate = _negate(fields, where)
     occupied_thresh = _unit_interval(fields, "occupied_thresh", where)
@@ -63,7 +85,7 @@ def load_ros_map(yaml_path: str | os.PathLike) -> OccupancyMap:
     mode = _mode(fields, where)
     image_path = _image_path(fields, path, where)
 
-    average = _channel_average(image_path, mode, where, fields["image"][1])
+    average = _channel_average(image_path, mode, where, fields["image"][1], resolution_m)
     if negate:
         average = 255.0 - average
     if mode == "raw":
@@ -139,6 +161,8 @@ def _parse_yaml_fields(text: str, where: str) -> dict[str, tuple[object, int]]:
     """Top-level key -> (python value, 1-based line of the value)."""
     try:
         root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except RecursionError:
+        raise MapFormatError(f"{where}: malformed YAML: nested too deeply for a map_server YAML") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
         line = f":{mark.line + 1}" if mark is not None else ""
@@ -161,7 +185,9 @@ def _parse_yaml_fields(text: str, where: str) -> dict[str, tuple[object, int]]:
         try:
             key = constructor.construct_object(key_node, deep=True)
             value = constructor.construct_object(value_node, deep=True)
-        except yaml.YAMLError as exc:
+        except RecursionError:
+            raise MapFormatError(f"{where}:{line}: malformed YAML value: nested too deeply") from None
+        except (yaml.YAMLError, TypeError) as exc:
             raise MapFormatError(f"{where}:{line}: malformed YAML value: {exc}") from None
         if not isinstance(key, str):
             continue  # map_server ignores anything it does not look up
@@ -269,12 +295,16 @@ def _image_path(fields, yaml_path: Path, where: str) -> Path:
 # ----------------------------------------------------------------------------- image
 
 
-def _channel_average(image_path: Path, mode: str, where: str, line: int) -> np.ndarray:
-    """Per-pixel channel mean (0..255 float, top row first) with map_server's alpha rule."""
+def _channel_average(image_path: Path, mode: str, where: str, line: int, resolution_m: float) -> np.ndarray:
+    """Per-pixel channel mean (0..255 float, top row first) with map_server's alpha rule.
+    The image's size is checked (from its header) before its pixels are decoded."""
     try:
         with Image.open(image_path) as img:
+            _check_size(img.size, image_path, where, line, resolution_m)
             img.load()
             pixels = _pixels_0_255(img)
+    except MapFormatError:
+        raise
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as exc:
         raise MapFormatError(
             f"{where}:{line}: field 'image': cannot decode image {image_path}: {exc}"
@@ -289,6 +319,17 @@ def _channel_average(image_path: Path, mode: str, where: str, line: int) -> np.n
     if has_alpha and mode != "trinary":
         pixels = pixels[..., :-1]
     return pixels.mean(axis=2)
+
+
+def _check_size(size: tuple[int, int], image_path: Path, where: str, line: int, resolution_m: float) -> None:
+    cols, rows = size
+    cells = cols * rows
+    if cells > MAX_CELLS:
+        raise MapFormatError(
+            f"{where}:{line}: field 'image': {image_path} is {cols} x {rows} pixels ({cols * resolution_m:g} x "
+            f"{rows * resolution_m:g} m at the map's resolution), {cells} cells: a mission would need about "
+            f"{cells * BYTES_PER_CELL / 2**30:.1f} GiB for one robot; at most {MAX_CELLS} cells"
+        )
 
 
 def _pixels_0_255(img: Image.Image) -> np.ndarray:
