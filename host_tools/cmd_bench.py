@@ -33,21 +33,32 @@ SCENARIOS: dict[str, MissionConfig] = {
     # A team sharing a real LoRa band: radio traffic in every tick's radio task.
     "cave-3robots-eu868": MissionConfig(map_spec="cave:1:60x60", robots=3, seed=0, max_sim_s=600.0,
                                         radio="eu868-g3", strategy="minpos"),
+    # Scaling with the team (1, 5, 20 robots on one 100 m cave; 50 on a 200 m one) and with the
+    # map (5 robots on 60, 100 and 200 m caves): MinPos on the ideal link, 400 s simulated.
+    **{f"cave{size}-{n}robots": MissionConfig(map_spec=f"cave:1:{size}x{size}", robots=n, seed=0, max_sim_s=400.0,
+                                              strategy="minpos")
+       for size, n in ((100, 1), (100, 5), (100, 20), (200, 50), (60, 5), (200, 5))},
 }
+QUARTERS = 4
 
 
 class WallClockProfiler:
-    """Collects wall time per task call and per firmware tick (perf_counter, on the host)."""
+    """Collects wall time per task call and per firmware tick (perf_counter, on the host),
+    and each task's total per quarter of the run (`quarter`, set as the run goes)."""
 
     def __init__(self) -> None:
         self.samples_s: dict[str, list[float]] = defaultdict(list)
+        self.quarter = 0
+        self.quarter_s: dict[str, list[float]] = defaultdict(lambda: [0.0] * QUARTERS)
         self._open: dict[str, float] = {}
 
     def enter(self, task: str) -> None:
         self._open[task] = time.perf_counter()
 
     def leave(self, task: str) -> None:
-        self.samples_s[task].append(time.perf_counter() - self._open.pop(task))
+        dt = time.perf_counter() - self._open.pop(task)
+        self.samples_s[task].append(dt)
+        self.quarter_s[task][self.quarter] += dt
 
 
 OPTIONS = (
@@ -86,11 +97,18 @@ def run_bench(name: str, sim_s: float | None, warmup_sim_s: float, quiet: bool,
     bar = progress_bar(cfg.max_sim_s, f"bench {name}", "sim s", quiet)
     last = [0.0]
 
+    marks = []    # (simulated s, wall s) where each quarter of the scheduled time began, and the end
+
     def progress(t: float, _coverage: float) -> None:
         bar.update(t - last[0])
         last[0] = t
+        quarter = min(QUARTERS - 1, int(QUARTERS * t / cfg.max_sim_s))
+        if not marks or quarter != profiler.quarter:     # the first call comes before the first tick
+            marks.append((t, time.perf_counter()))
+        profiler.quarter = quarter
 
     result = run_mission(cfg, progress, profiler=profiler)
+    marks.append((result.sim_s, time.perf_counter()))
     bar.close()
     peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     agent = result.agents[0]
@@ -108,9 +126,33 @@ def run_bench(name: str, sim_s: float | None, warmup_sim_s: float, quiet: bool,
         "sim_speedup": round(result.sim_speedup, 2),
         "tick": _stats_ms(profiler.samples_s["tick"]),
         "tasks": tasks,
+        **scaling(cfg.robots, result.sim_s, result.wall_s, profiler, marks),
         "peak_rss_mb": round(peak_rss_mb, 1),
         **agent.memory_bytes(),
         "coverage": round(result.coverage, 4),
+    }
+
+
+def scaling(robots: int, sim_s: float, wall_s: float, profiler: WallClockProfiler,
+            marks: list[tuple[float, float]]) -> dict:
+    """How the cost grows with the team and with the mission: robot-seconds simulated per
+    wall second, each task's wall time per robot-second (ms), and both per quarter of the
+    scheduled time, with the last quarter's over the first's. A mission that ends early has
+    fewer quarters (None for the others); its last one is partial."""
+    robot_s = [robots * (b[0] - a[0]) for a, b in zip(marks, marks[1:])]
+    wall = [b[1] - a[1] for a, b in zip(marks, marks[1:])]
+    pad = [None] * (QUARTERS - len(robot_s))
+    per_task = {task: [round(1e3 * q / rs, 4) if rs > 0 else None for q, rs in zip(quarters, robot_s)] + pad
+                for task, quarters in sorted(profiler.quarter_s.items()) if task != "tick"}
+    reached = [q for q in range(len(robot_s)) if robot_s[q] > 0]
+    first, last = (reached[0], reached[-1]) if reached else (None, None)
+    return {
+        "robot_s_per_wall_s": round(robots * sim_s / wall_s, 2) if wall_s > 0 else None,
+        "robot_s_per_wall_s_by_quarter": [round(rs / w, 2) if rs > 0 and w > 0 else None
+                                          for rs, w in zip(robot_s, wall)] + pad,
+        "task_ms_per_robot_s_by_quarter": per_task,
+        "last_over_first_quarter": {task: round(q[last] / q[first], 2) if reached and q[first] else None
+                                    for task, q in per_task.items()},
     }
 
 
@@ -133,7 +175,13 @@ def main(args: argparse.Namespace) -> int:
         over = "  p99 over budget" if budget is not None and s["p99_ms"] > budget else ""
         print(f"{name:<12}{s['calls']:>8}{s['median_ms']:>12.3f}{s['p99_ms']:>10.3f}{s['max_ms']:>10.3f}"
               f"{budget_text}{over}")
-    print(f"simulation speed   {report['sim_speedup']:.1f}x real time")
+    print(f"simulation speed   {report['sim_speedup']:.1f}x real time, {report['robot_s_per_wall_s']:.1f} "
+          f"robot-seconds per wall second (by quarter of the run: "
+          f"{', '.join(str(q) for q in report['robot_s_per_wall_s_by_quarter'])})")
+    print("ms per robot-second, by quarter of the run (last / first):")
+    for task, quarters in report["task_ms_per_robot_s_by_quarter"].items():
+        print(f"  {task:<10}{'  '.join(f'{q:8.3f}' if q is not None else f'{chr(8211):>8}' for q in quarters)}   "
+              f"({report['last_over_first_quarter'][task]})")
     print(f"peak memory        {report['peak_rss_mb']:.0f} MB resident (whole process)")
     print(f"local map          {report['local_map_bytes'] / 1024:.0f} KiB window (fixed), "
           f"{report['paged_out_bytes'] / 1024:.0f} KiB paged out (grows with the area covered)")

@@ -150,7 +150,7 @@ class Scheme(ABC):
     def drawables(self) -> dict[str, Any]:
         """Geometry for plots: any of
         "points" (N x 2 m), "segments" (M x 2 x 2 m), "highlight" (bool per point),
-        "title" (what they are)."""
+        "title" (what they are), "what" (what one point is, for the legend)."""
         return {}
 
 
