@@ -170,14 +170,15 @@ def test_byte_rate_cap_holds_over_every_10_s_window(cap_Bps):
     assert max(sizes) <= cap_Bps * RATE_WINDOW_US / 1e6
     worst = max(sum(n for t, n in zip(times, sizes) if t0 <= t < t0 + RATE_WINDOW_US) for t0 in times)
     assert worst <= cap_Bps * RATE_WINDOW_US / 1e6
-    # Saturated, every window holds as many of the largest frames as fit in it.
-    window_bytes = int(cap_Bps * RATE_WINDOW_US / 1e6)
-    assert sum(sizes) >= 0.9 * (window_bytes // max(sizes)) * max(sizes) * 120e6 / RATE_WINDOW_US
+    assert sum(sizes) >= 0.9 * cap_Bps * 120
 
 
 def test_ideal_profile_takes_its_cap_and_inf_disables_it():
     ideal = profile("ideal-100Bps")
     assert Link(1, ideal)._rate_Bps == 100
+    assert Link(1, ideal).max_frame_bytes == 250            # four to a 10 s window of 1000 bytes
+    assert Link(1, ideal, byte_rate_cap_Bps=20.0).max_frame_bytes == 200
+    assert Link(1, ideal, byte_rate_cap_Bps=float("inf")).max_frame_bytes == 255
     assert Link(1, ideal, byte_rate_cap_Bps=float("inf"))._rate_Bps is None
     assert Link(1, profile("eu868-g3"))._rate_Bps is None
 

@@ -148,9 +148,13 @@ class LinkLayer:
                                    else int(self._rate_Bps * RATE_WINDOW_US / 1_000_000))
         self._sent_log: deque[tuple[int, int]] = deque()   # own (start_us, bytes) in the window
         self._sent_log_bytes = 0
-        # A frame larger than the cap's window could never go.
-        self.max_frame_bytes = min(profile.max_payload_bytes, MAX_FRAME_BYTES,
-                                   self._rate_window_bytes or MAX_FRAME_BYTES)
+        # A frame larger than the cap's window could never go, and under a cap frames are
+        # sized to split the window evenly, so a saturated link uses all of it: a 1000-byte
+        # window holds four 250-byte frames but only three of 252 bytes (76 %).
+        self.max_frame_bytes = min(profile.max_payload_bytes, MAX_FRAME_BYTES)
+        if self._rate_window_bytes is not None:
+            frames_per_window = -(-self._rate_window_bytes // self.max_frame_bytes)
+            self.max_frame_bytes = min(self.max_frame_bytes, self._rate_window_bytes // frames_per_window)
         self._budget_us = (None if profile.duty_cycle is None
                            else round(profile.duty_cycle * profile.duty_cycle_window_us))
         self._tx_log: deque[tuple[int, int]] = deque()   # own (start_us, end_us), this sub-band
