@@ -197,3 +197,26 @@ def test_cli_errors_and_helpers(tmp_path, capsys):
     assert "loratap.syncword" in lua.read_text() and "### `topo` (dialect 1, code 1" in out
     for d in all_dialects():
         assert f"## Dialect {d.id} `{d.name}` (fingerprint 0x{d.fingerprint:04X})" in out
+
+
+def test_cli_warns_for_each_capture_dialect_it_will_fail_to_check(tmp_path, network, capsys):
+    import dataclasses
+
+    from firmware.comms.schema import CORE, SENDER, Dialect, DialectSet, Field, RecordType
+    prof, _, air, _ = network
+    topo = BF.by_name["topo"]
+    changed = Dialect(BF.id, BF.name, (dataclasses.replace(topo, doc="", fields=tuple(
+        dataclasses.replace(f, hi=100) if f.name == "z_cm" else f for f in topo.fields)),))
+    other = Dialect(9, "other", (RecordType(1, "blip", 1, (SENDER,)),))
+    same, theirs = tmp_path / "same.jsonl", tmp_path / "theirs.jsonl"
+    for path, dialects in ((same, None), (theirs, DialectSet([CORE, changed, other]))):
+        with CaptureWriter(path, prof.name, dialects=dialects) as w:
+            w.write(air[0])
+    assert cli.main(["inspect", str(same), "--summary"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert cli.main(["inspect", str(theirs), "--summary"]) == 0
+    err = capsys.readouterr().err
+    assert f"capture dialect 'bayer_faigl' fingerprint 0x{changed.fingerprint:04X} differs from ours " \
+           f"0x{BF.fingerprint:04X}; its frames will fail the CRC" in err
+    assert "capture dialect 'other' (fingerprint" in err and "unknown dialect" in err
+    assert "'core'" not in err

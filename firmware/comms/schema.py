@@ -310,18 +310,20 @@ def record_type(name_or_type: str | RecordType, dialects: DialectSet | None = No
     """A record type by name, from `dialects` (default: every known dialect)."""
     if isinstance(name_or_type, RecordType):
         return name_or_type
-    return (dialects or default_dialects()).record(name_or_type)
+    return (dialects if dialects is not None else default_dialects()).record(name_or_type)
 
 
-def markdown_table(dialects: DialectSet | None = None) -> str:
-    """Every dialect's records as Markdown: for the README and `lorascout inspect --schema`."""
-    dialects = dialects or default_dialects()
+def markdown_table(dialects: DialectSet | None = None, heading_level: int = 2) -> str:
+    """Every dialect's records as Markdown: for the README and `lorascout inspect --schema`.
+    Dialects get headings of `heading_level`, their records one level deeper."""
+    dialects = dialects if dialects is not None else default_dialects()
+    h_dialect, h_record = "#" * heading_level, "#" * (heading_level + 1)
     lines = [f"Frame version {FRAME_VERSION}, {CRC_CATALOGUE_NAME} with the core fingerprint "
              f"0x{dialects.core.fingerprint:04X} and the frame dialect's fingerprint folded in.", ""]
     for d in dialects:
-        lines.extend([f"## Dialect {d.id} `{d.name}` (fingerprint 0x{d.fingerprint:04X})", ""])
+        lines.extend([f"{h_dialect} Dialect {d.id} `{d.name}` (fingerprint 0x{d.fingerprint:04X})", ""])
         for r in d.records:
-            lines.append(f"### `{r.name}` (dialect {d.id}, code {r.code}, {r.size_bytes} bytes: "
+            lines.append(f"{h_record} `{r.name}` (dialect {d.id}, code {r.code}, {r.size_bytes} bytes: "
                          f"{r.bits_used} bits + {r.padding_bits} padding)")
             lines.append("")
             if r.doc:
