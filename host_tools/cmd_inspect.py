@@ -197,8 +197,8 @@ def fingerprint_warnings(theirs: dict[str, int] | None, ours: DialectSet) -> lis
     out = []
     for name, fp in theirs.items():
         if name not in mine:
-            out.append(f"capture dialect {name!r} (fingerprint 0x{fp:04X}) is unknown here; its frames will be "
-                       f"rejected (unknown dialect)")
+            out.append(f"capture dialect {name!r} (fingerprint 0x{fp:04X}) is not one of ours; its frames will be "
+                       f"rejected (unknown dialect, or a bad CRC if its id is one of ours)")
         elif fp != mine[name]:
             every = " (the core's: every frame)" if name == ours.core.name else ""
             out.append(f"capture dialect {name!r} fingerprint 0x{fp:04X} differs from ours 0x{mine[name]:04X}; "
