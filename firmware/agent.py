@@ -21,7 +21,7 @@ import math
 from firmware.comms.link import LinkLayer, TdmaSchedule
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task, TaskProfiler
-from firmware.schemes import build
+from firmware.schemes import all_dialects, build
 from firmware.schemes.base import NEEDS, PRIORITY_STATUS, Scheme, Services
 from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.services.motion import PathFollower, StallDetector
@@ -63,7 +63,8 @@ class ExplorerAgent:
         self.bumps = 0
         self.link = (LinkLayer(hal.robot_id, radio_profile,
                                tdma=TdmaSchedule.for_team(radio_profile, team_size, hal.robot_id,
-                                                          round(1_000_000 / rates.radio_hz)))
+                                                          round(1_000_000 / rates.radio_hz)),
+                               dialect=self.scheme.dialect, dialects=all_dialects())
                      if "radio" in needs else None)
         self.scheduler = Scheduler([
             Task("radio", rates.radio_hz, self._task_radio),

@@ -4,13 +4,16 @@ Format (JSON Lines, UTF-8, one object per line):
 
 line 1, the header:
     {"format": "lorascout-capture", "version": 1, "profile": "eu868-g3",
-     "schema_fingerprint": "0x1234", "crc": "modbus",
+     "fingerprints": {"core": "0xD3DA", "bayer_faigl": "0x915F"}, "crc": "modbus",
      "reception_fields": ["receiver_id", "rssi_dbm", "snr_db", "fate"], "meta": {...}}
 every further line, one transmission (radio_sim.air_log.AirFrame):
     {"start_us": 1200000, "end_us": 1241216, "sender_id": 3, "freq_hz": 869525000,
      "sf": 7, "bw_hz": 125000, "payload": "1101...hex...",
      "rx": [[1, -87.25, 6.5, "received"], [2, -131.0, -12.0, "out_of_range"]]}
 
+"fingerprints" are those of every record dialect the writer knew (name -> CRC-16, see
+firmware.comms.schema.Dialect), so a reader can tell which dialects' frames it will fail to
+check. A capture from before dialects has one "schema_fingerprint" instead (frame format 1).
 `sender_id` is the node that transmitted (a relay, for a relayed frame); the frame header
 inside `payload` names the originator. `rx` has one row per other node, in the order of
 "reception_fields"; fates are radio_sim.air_log.FATES. RSSI and SNR are rounded to 0.01 dB;
@@ -30,7 +33,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any, TextIO
 
-from firmware.comms.schema import CRC_NAME, SCHEMA_FINGERPRINT
+from firmware.comms.schema import CRC_NAME, DialectSet, default_dialects
 from host_tools.safe_io import strict_loads
 from radio_sim.air_log import FATES, AirFrame, Reception
 
@@ -48,7 +51,7 @@ class CaptureError(ValueError):
 @dataclass(frozen=True)
 class CaptureHeader:
     profile: str
-    schema_fingerprint: int | None
+    fingerprints: dict[str, int] | None    # dialect name -> fingerprint; None: not recorded
     crc: str | None
     meta: dict[str, Any] = field(default_factory=dict)
     version: int = FORMAT_VERSION
@@ -64,7 +67,10 @@ class CaptureWriter:
     The frames go to a temporary file beside `path`, which close() renames into place (and
     abort() removes): a file already at `path` is replaced only by a finished capture."""
 
-    def __init__(self, path: str | os.PathLike, profile_name: str, meta: dict[str, Any] | None = None) -> None:
+    def __init__(self, path: str | os.PathLike, profile_name: str, meta: dict[str, Any] | None = None,
+                 dialects: DialectSet | None = None) -> None:
+        """dialects: whose fingerprints the header records (default: every known dialect)."""
+        dialects = dialects if dialects is not None else default_dialects()
         self.path = os.fspath(path)
         self.frames_written = 0
         folder = os.path.dirname(os.path.abspath(self.path))
@@ -73,7 +79,7 @@ class CaptureWriter:
         self._f: TextIO | None = os.fdopen(fd, "w", encoding="utf-8", newline="\n")
         header = {
             "format": FORMAT_NAME, "version": FORMAT_VERSION, "profile": profile_name,
-            "schema_fingerprint": f"0x{SCHEMA_FINGERPRINT:04X}", "crc": CRC_NAME,
+            "fingerprints": {name: f"0x{fp:04X}" for name, fp in dialects.fingerprints().items()}, "crc": CRC_NAME,
             "reception_fields": list(RECEPTION_FIELDS), "meta": meta or {},
         }
         self._f.write(json.dumps(header, sort_keys=True, allow_nan=False) + "\n")
@@ -168,17 +174,39 @@ def _parse_header(path: str, text: str) -> CaptureHeader:
         raise _fail(path, 1, "version", f"{h.get('version')!r}; this reader knows version {FORMAT_VERSION}")
     if not isinstance(h.get("profile"), str):
         raise _fail(path, 1, "profile", f"expected a profile name, got {h.get('profile')!r}")
-    fp = h.get("schema_fingerprint")
-    try:
-        fingerprint = None if fp is None else int(fp, 16)
-    except (TypeError, ValueError):
-        raise _fail(path, 1, "schema_fingerprint", f"expected hex like '0x1A2B', got {fp!r}") from None
+    fingerprints = _fingerprints(path, h)
     if h.get("reception_fields", list(RECEPTION_FIELDS)) != list(RECEPTION_FIELDS):
         raise _fail(path, 1, "reception_fields", f"expected {list(RECEPTION_FIELDS)}")
     meta = h.get("meta", {})
     if not isinstance(meta, dict):
         raise _fail(path, 1, "meta", "expected an object")
-    return CaptureHeader(h["profile"], fingerprint, h.get("crc"), meta)
+    return CaptureHeader(h["profile"], fingerprints, h.get("crc"), meta)
+
+
+# The name a frame-format-1 capture's single fingerprint is filed under: it names no dialect,
+# so a reader sees that the capture's tables are not its own.
+LEGACY_FINGERPRINT_NAME = "schema (frame format 1)"
+
+
+def _hex16(path: str, fld: str, v: Any) -> int:
+    try:
+        out = int(v, 16)
+    except (TypeError, ValueError):
+        raise _fail(path, 1, fld, f"expected hex like '0x1A2B', got {v!r}") from None
+    if not 0 <= out <= 0xFFFF:
+        raise _fail(path, 1, fld, f"{v!r} is not a 16-bit value")
+    return out
+
+
+def _fingerprints(path: str, h: dict) -> dict[str, int] | None:
+    if "fingerprints" in h:
+        fps = h["fingerprints"]
+        if not isinstance(fps, dict):
+            raise _fail(path, 1, "fingerprints", "expected an object of dialect name -> hex fingerprint")
+        return {str(name): _hex16(path, f"fingerprints.{name}", v) for name, v in fps.items()}
+    if h.get("schema_fingerprint") is not None:
+        return {LEGACY_FINGERPRINT_NAME: _hex16(path, "schema_fingerprint", h["schema_fingerprint"])}
+    return None
 
 
 def parse_frame_line(path: str, line: int, text: str) -> AirFrame:

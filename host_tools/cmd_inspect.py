@@ -6,7 +6,10 @@
     lorascout inspect run.capture.jsonl --pcap out.pcap [--pcap-mode per-receiver]
     lorascout inspect --serial /dev/ttyUSB0 --profile eu868-g3 --count 20 --timeout 60
     lorascout inspect --write-dissector lorascout.lua   Wireshark dissector (generated)
-    lorascout inspect --schema                          the record table as Markdown
+    lorascout inspect --schema                          every dialect's record table as Markdown
+
+Frames of every known record dialect (firmware.schemes.all_dialects(): the core plus each
+scheme's) are decoded; each frame shows its dialect, each record its type.
 
 Statistics are per transmitting node (`sender_stats`): frames, bytes, airtime and its share
 of every duty-cycle window per sub-band, and, per receiver, frames received and frames lost
@@ -27,7 +30,8 @@ from typing import Any
 from firmware.comms.codec import REASONS, Reason
 from firmware.comms.frame import SEQ_MODULUS, decode_frame, seq_newer
 from firmware.comms.link import RATE_WINDOW_US
-from firmware.comms.schema import BY_NAME, SCHEMA_FINGERPRINT, markdown_table
+from firmware.comms.schema import DialectSet, markdown_table
+from firmware.schemes import all_dialects
 from hal.lora import PROFILES, RadioProfile
 from hal.samples import RadioRxFrame
 from host_tools.options import JSON, Opt, add_options
@@ -187,8 +191,27 @@ def _unit_suffix(name: str, unit: str) -> str:
     return "" if tail in ("cm", "cdeg", "cmps", "dm", "id", "us", "m") or not unit else f" ({unit})"
 
 
+def fingerprint_warnings(theirs: dict[str, int] | None, ours: DialectSet) -> list[str]:
+    """What a capture's recorded dialect fingerprints mean for decoding it here: one line per
+    dialect whose frames will be rejected (a dialect only we know costs nothing)."""
+    if theirs is None:
+        return []
+    mine = ours.fingerprints()
+    out = []
+    for name, fp in theirs.items():
+        if name not in mine:
+            out.append(f"capture dialect {name!r} (fingerprint 0x{fp:04X}) is not one of ours; its frames will be "
+                       f"rejected (unknown dialect, or a bad CRC if its id is one of ours)")
+        elif fp != mine[name]:
+            every = " (the core's: every frame)" if name == ours.core.name else ""
+            out.append(f"capture dialect {name!r} fingerprint 0x{fp:04X} differs from ours 0x{mine[name]:04X}; "
+                       f"its frames{every} will fail the CRC")
+    return out
+
+
 def describe(a: AirFrame, profile: RadioProfile | None = None) -> dict[str, Any]:
-    res = decode_frame(a.payload)
+    dialects = all_dialects()
+    res = decode_frame(a.payload, dialects)
     d: dict[str, Any] = {
         "start_us": a.start_us, "end_us": a.end_us, "tx_id": a.sender_id, "freq_hz": a.freq_hz,
         "sf": a.sf, "bw_hz": a.bw_hz, "size_bytes": len(a.payload), "airtime_us": a.end_us - a.start_us,
@@ -200,7 +223,8 @@ def describe(a: AirFrame, profile: RadioProfile | None = None) -> dict[str, Any]
     if res.frame is not None:
         f = res.frame
         d.update(sender_id=f.sender_id, seq=f.seq, hops_taken=f.hops_taken, hops_left=f.hops_left,
-                 records=[{"type": n, "values": v} for n, v in f.records])
+                 dialect_id=f.dialect_id, dialect=dialects.get(f.dialect_id).name,
+                 records=[{"dialect": dialects.dialect_of(n).name, "type": n, "values": v} for n, v in f.records])
     return d
 
 
@@ -212,11 +236,13 @@ def format_frame(d: dict[str, Any]) -> str:
         lines = [head + f"REJECTED {d['reason'].upper()}: {d['detail']}"]
     else:
         relay = "" if d["sender_id"] == d["tx_id"] else f" (relayed for {d['sender_id']})"
-        lines = [head + f"ok  sender {d['sender_id']} seq {d['seq']} hops {d['hops_taken']}/{d['hops_left']}{relay}"]
+        lines = [head + f"ok  sender {d['sender_id']} seq {d['seq']} hops {d['hops_taken']}/{d['hops_left']}"
+                        f"  dialect {d['dialect_id']} {d['dialect']}{relay}"]
+        dialects = all_dialects()
         for rec in d["records"]:
-            rt = BY_NAME[rec["type"]]
+            rt = dialects.record(rec["type"])
             vals = " ".join(f"{fl.name}={rec['values'][fl.name]}{_unit_suffix(fl.name, fl.unit)}" for fl in rt.fields)
-            lines.append(f"      {rec['type']:7s} {vals}")
+            lines.append(f"      {rec['dialect'] + '.' + rec['type']:18s} {vals}")
     if d["receptions"]:
         lines.append("      rx      " + "  ".join(
             f"{r['receiver_id']}:{r['fate']} {r['rssi_dbm']:.1f} dBm {r['snr_db']:.1f} dB" for r in d["receptions"]))
@@ -318,7 +344,7 @@ OPTIONS = (
     Opt("--receiver-id", "int", "serial: id recorded as the receiver", lo=0, hi=255, default=0, metavar="ID"),
     Opt("--write-capture", "out_file", "serial: save received frames as a capture", metavar="PATH"),
     Opt("--write-dissector", "out_file", "write the generated Wireshark Lua dissector", metavar="PATH"),
-    Opt("--schema", "flag", "print the record table as Markdown"),
+    Opt("--schema", "flag", "print every record dialect's table (id, fingerprint, records) as Markdown"),
 )
 
 
@@ -385,11 +411,11 @@ def _main(args: argparse.Namespace) -> int:
                 except ValueError as exc:
                     raise InspectError(f"{args.capture}:{line}: {exc}; no pcap written") from None
         profile = PROFILES.get(header.profile) or (PROFILES[args.profile] if args.profile else None)
-        if header.schema_fingerprint is not None and header.schema_fingerprint != SCHEMA_FINGERPRINT:
-            print(f"warning: capture schema fingerprint 0x{header.schema_fingerprint:04X} differs from ours "
-                  f"0x{SCHEMA_FINGERPRINT:04X}; its frames will fail the CRC", file=sys.stderr)
+        for warning in fingerprint_warnings(header.fingerprints, all_dialects()):
+            print(f"warning: {warning}", file=sys.stderr)
         hdr = {"capture": str(args.capture), "profile": header.profile, "frames": len(frames),
-               "schema_fingerprint": f"0x{SCHEMA_FINGERPRINT:04X}", "meta": header.meta}
+               "fingerprints": {n: f"0x{fp:04X}" for n, fp in all_dialects().fingerprints().items()},
+               "meta": header.meta}
         if not args.json:
             print(f"capture {args.capture}: profile {header.profile}, {len(frames)} frames")
         _report(frames, profile, args, hdr, printed=False)

@@ -19,7 +19,6 @@ from typing import Callable, Iterable
 import numpy as np
 
 from firmware.comms.frame import frame_size_bytes
-from firmware.comms.schema import record_type
 from firmware.schemes.dense_baseline.keyframes import keyframe_bytes
 from firmware.params import ExplorationParams
 from firmware.schemes import build as build_scheme
@@ -251,9 +250,18 @@ def packet_bytes(strategy: str, params: ExplorationParams) -> int:
     scheme = build_scheme(strategy)
     if "mesh" in scheme.needs_of():
         return keyframe_bytes(params.keyframe_bins)
-    if scheme.records:
-        return max(record_type(r).size_bytes for r in scheme.records)
+    if scheme.dialect is not None and scheme.dialect.records:
+        return max(r.size_bytes for r in scheme.dialect.records)
     return 0
+
+
+def frame_bytes_one_record(strategy: str) -> int:
+    """Bytes on the air of a frame holding one of the scheme's largest radio records (0 for
+    a scheme that sends none of its own)."""
+    dialect = build_scheme(strategy).dialect
+    if dialect is None or not dialect.records:
+        return 0
+    return frame_size_bytes({max(dialect.records, key=lambda r: r.size_bytes).name: 1})
 
 
 # (strategy, reference, ratio bound, comparison) pairs that Bayer & Faigl's claims and
@@ -336,7 +344,7 @@ def tables(spec: SweepSpec, results: list[dict]) -> dict:
         table4.append({
             "strategy": s,
             "packet_bytes": packet_bytes(s, params_with(spec.overrides)),
-            "frame_bytes_one_record": frame_size_bytes({"topo": 1}) if strategy_named(s).shares_topology else 0,
+            "frame_bytes_one_record": frame_bytes_one_record(s),
             "radio_Bps_per_robot_mean": round(float(np.mean(radio_bps)), 2) if radio_bps else 0.0,
             "radio_Bps_per_robot_peak_10s": round(float(np.max(radio_peak)), 2) if radio_peak else 0.0,
             "mesh_Bps_per_robot_mean": round(float(np.mean(mesh_bps)), 1) if mesh_bps else 0.0,

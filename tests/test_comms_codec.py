@@ -3,7 +3,9 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from firmware.comms.codec import Reason, decode, encode
-from firmware.comms.schema import BY_NAME, RECORD_CLASSES, RECORD_TYPES
+from firmware.schemes import all_dialects
+
+RECORD_TYPES = tuple(r for d in all_dialects() for r in d.records)
 
 
 def values_for(rt):
@@ -21,7 +23,7 @@ def test_round_trip_at_declared_size(rec):
     assert len(data) == rt.size_bytes
     got = decode(rt.name, data)
     assert got.reason is Reason.OK and got.values == values
-    assert encode(rt.name, RECORD_CLASSES[rt.name](**values)) == data
+    assert encode(rt.name, rt.values_class(**values)) == data
 
 
 @settings(max_examples=300, deadline=None)
@@ -58,7 +60,8 @@ def test_range_errors_name_field_and_range():
 
 
 def test_decode_reports_out_of_range_and_padding():
-    pose = BY_NAME["pose"]
+    pose = all_dialects().record("pose")
+    assert pose.padding_bits == 1
     good = encode(pose, dict(sender_id=1, x_cm=0, y_cm=0, yaw_cdeg=0, speed_cmps=0, exploring=0,
                              done=0, returning=0, vertex_count=0))
     word = int.from_bytes(good, "big")
@@ -66,9 +69,10 @@ def test_decode_reports_out_of_range_and_padding():
     bad = (word | (0x7FFF << yaw_shift)).to_bytes(12, "big")
     got = decode(pose, bad)
     assert got.reason is Reason.OUT_OF_RANGE and "yaw_cdeg = 32767" in got.detail
-    padded = bytearray(encode("target", dict(sender_id=1, x_cm=0, y_cm=0, path_cost_dm=0, claimed=0, e_inf_code=0)))
+    padded = bytearray(good)
     padded[-1] |= 1
-    assert decode("target", bytes(padded)).reason is Reason.OUT_OF_RANGE
+    got = decode(pose, bytes(padded))
+    assert got.reason is Reason.OUT_OF_RANGE and "padding" in got.detail
 
 
 def test_saturate_clamps_and_rounds_into_range():
@@ -78,5 +82,7 @@ def test_saturate_clamps_and_rounds_into_range():
     assert v == dict(sender_id=3, x_cm=13, y_cm=-(1 << 23), yaw_cdeg=18000, speed_cmps=255, exploring=1,
                      done=0, returning=0, vertex_count=4095)
     assert decode("pose", encode("pose", v)).values == v
-    assert saturate("target", dict(sender_id=1, x_cm=float("inf"), y_cm=float("-inf"), path_cost_dm=7e9,
-                                   claimed=1, e_inf_code=-4))["path_cost_dm"] == 65535
+    assert saturate("topo", dict(sender_id=1, x_cm=float("inf"), y_cm=float("-inf"), z_cm=7e9, presence=1,
+                                 e_inf_code=-4, info_version=300)) == dict(
+        sender_id=1, x_cm=(1 << 23) - 1, y_cm=-(1 << 23), z_cm=(1 << 23) - 1, presence=1, e_inf_code=0,
+        info_version=127)

@@ -9,8 +9,14 @@ import pytest
 
 from firmware.comms.codec import REASONS, Reason
 from firmware.comms.frame import decode_frame, encode_frame_records, seal
-from firmware.comms.schema import RECORD_TYPES
+from firmware.comms.frame import HEADER_BYTES, LENGTH_BYTE, OVERHEAD_BYTES
+from firmware.comms.schema import FRAME_VERSION
+from firmware.schemes import all_dialects
 from world_sim.seeding import stream
+
+# Every record of every dialect; a frame takes core records and one dialect's.
+DIALECTS = tuple(all_dialects())
+CORE_TYPES = DIALECTS[0].records
 
 N_PER_CLASS = 12_800          # 8 classes -> 102 400 frames
 N_PER_CLASS_SLOW = 125_000    # 8 classes -> 1 000 000 frames
@@ -21,8 +27,9 @@ def _valid_frames(rng: np.random.Generator, n: int) -> list[bytes]:
     out = []
     for i in range(n):
         recs = []
+        types = CORE_TYPES + DIALECTS[int(rng.integers(len(DIALECTS)))].records
         for _ in range(int(rng.integers(1, 8))):
-            rt = RECORD_TYPES[int(rng.integers(len(RECORD_TYPES)))]
+            rt = types[int(rng.integers(len(types)))]
             word = 0
             for f in rt.fields:
                 v = int(rng.integers(f.min_value, f.max_value + 1))
@@ -52,8 +59,9 @@ def build_corpus(seed: int = 1, n: int = N_PER_CLASS) -> dict[str, list[bytes]]:
     lengths = rng.integers(2, 264, size=n)
     raw = rng.integers(0, 256, size=int(lengths.sum()), dtype=np.uint8)
     starts = np.cumsum(lengths) - lengths
-    raw[starts] = (raw[starts] & 0x0F) | 0x10            # our version nibble
-    raw[starts + 1] = np.maximum(lengths - 8, 0).clip(0, 255)   # a self-consistent length byte
+    raw[starts] = (raw[starts] & 0x0F) | (FRAME_VERSION << 4)       # our version nibble
+    raw[starts + LENGTH_BYTE] = np.maximum(lengths - OVERHEAD_BYTES, 0).clip(0, 255)   # a self-consistent length byte
+    # (the dialect byte stays random: mostly unknown dialects)
     corpus["random_versioned"] = _split(raw, lengths)
 
     flips = []
@@ -77,7 +85,7 @@ def build_corpus(seed: int = 1, n: int = N_PER_CLASS) -> dict[str, list[bytes]]:
     n_bytes = rng.integers(1, 4, size=n)
     for i, nb in zip(pick[3].tolist(), n_bytes.tolist()):
         b = bytearray(base[i][:-2])
-        for pos in rng.integers(6, len(b), size=nb).tolist():
+        for pos in rng.integers(HEADER_BYTES, len(b), size=nb).tolist():
             b[pos] = int(rng.integers(256))
         resealed.append(seal(bytes(b)))
     corpus["resealed_payload"] = resealed
@@ -87,10 +95,10 @@ def build_corpus(seed: int = 1, n: int = N_PER_CLASS) -> dict[str, list[bytes]]:
     for k, i in enumerate(pick[4].tolist()):
         b = bytearray(base[i][:-2])
         if k % 2:
-            b[0] = 0x10 | int(rng.integers(16))
+            b[0] = (FRAME_VERSION << 4) | int(rng.integers(16))
         else:
-            b = b[:6] + b[6:][: int(rng.integers(0, len(b) - 6))]
-            b[1] = len(b) - 6
+            b = b[:HEADER_BYTES] + b[HEADER_BYTES:][: int(rng.integers(0, len(b) - HEADER_BYTES))]
+            b[LENGTH_BYTE] = len(b) - HEADER_BYTES
         hdr.append(seal(bytes(b)))
     corpus["resealed_header"] = hdr
 

@@ -2,8 +2,12 @@
 from hypothesis import given, settings, strategies as st
 
 from firmware.comms.frame import Reason, encode_frame
-from firmware.comms.schema import RECORD_TYPES
+from firmware.comms.schema import CORE, SENDER, Dialect, DialectSet, Field, RecordType
 from firmware.comms.stream import Deframer
+from firmware.schemes import all_dialects
+from firmware.schemes.bayer_faigl.records import DIALECT as BF
+
+RECORD_TYPES = CORE.records + BF.records
 
 
 def values_for(rt):
@@ -52,7 +56,7 @@ def test_garbage_before_frames_is_skipped(garbage, frames, data):
     # compare the tail: every real frame comes out, in order, at the end.
     want = [len(f) for f in frames]
     assert [f.size_bytes for f in got[-len(frames):]] == want
-    assert [f.seq for f in got[-len(frames):]] == [int.from_bytes(f[3:5], "big") for f in frames]
+    assert [f.seq for f in got[-len(frames):]] == [int.from_bytes(f[4:6], "big") for f in frames]
 
 
 def test_corrupted_frame_between_good_ones_costs_only_itself():
@@ -84,3 +88,17 @@ def test_arbitrary_chunks_never_raise_and_every_byte_is_accounted(chunks):
         assert st["bytes_in"] == st["bytes_skipped"] + st["bytes_framed"] + d.pending_bytes
     d.flush()
     assert d.pending_bytes == 0 and d.stats["bytes_in"] == d.stats["bytes_skipped"] + d.stats["bytes_framed"]
+
+
+def test_a_frame_of_an_unknown_dialect_is_stepped_over_like_garbage():
+    """Its CRC cannot be checked, so it is no better than noise: the scan resyncs through
+    it, and frames after it still come out."""
+    other = Dialect(2, "other", (RecordType(1, "blip", 2, (SENDER, Field("level_id", 8))),))
+    theirs = encode_frame(4, 9, [("blip", dict(sender_id=4, level_id=1))],
+                          dialects=DialectSet([*all_dialects(), other]))
+    ours = encode_frame(1, 1, [("topo", dict(sender_id=1, x_cm=0, y_cm=0, z_cm=0, presence=0, e_inf_code=0,
+                                             info_version=0))])
+    d = Deframer()
+    got = d.feed(ours + theirs + ours) + d.flush()
+    assert [(r.reason, r.frame.seq) for r in got] == [(Reason.OK, 1), (Reason.OK, 1)]
+    assert d.stats["dialect_rejects"] >= 1 and d.stats["bytes_skipped"] == len(theirs)

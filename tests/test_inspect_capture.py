@@ -3,9 +3,11 @@ import json
 
 import pytest
 
-from host_tools.capture import CaptureError, CaptureWriter, read_capture
+from host_tools.capture import LEGACY_FINGERPRINT_NAME, CaptureError, CaptureWriter, read_capture
 from firmware.comms.frame import encode_frame
-from firmware.comms.schema import SCHEMA_FINGERPRINT
+from firmware.comms.schema import CORE
+from firmware.schemes import all_dialects
+from firmware.schemes.bayer_faigl.records import DIALECT as BF
 from radio_sim.air_log import COLLIDED, RECEIVED, AirFrame, Reception
 
 TOPO = dict(sender_id=3, x_cm=10, y_cm=-20, z_cm=0, presence=1, e_inf_code=77, info_version=0)
@@ -27,7 +29,9 @@ def test_round_trip_and_header(tmp_path):
             w.write(a)
     assert w.frames_written == 2
     header, it = read_capture(path)
-    assert header.profile == "eu868-g3" and header.schema_fingerprint == SCHEMA_FINGERPRINT
+    assert header.profile == "eu868-g3"
+    assert header.fingerprints == {"core": CORE.fingerprint, "bayer_faigl": BF.fingerprint} == all_dialects().fingerprints()
+    assert json.loads(path.read_text().splitlines()[0])["fingerprints"]["core"] == f"0x{CORE.fingerprint:04X}"
     assert header.meta == {"seed": 7} and header.crc == "modbus"
     got = list(it)
     want = frames()
@@ -98,6 +102,12 @@ def test_missing_field_and_broken_json(tmp_path):
     (json.dumps({"format": "pcap"}), "field 'format'"),
     (json.dumps({"format": "lorascout-capture", "version": 9, "profile": "x"}), "field 'version'"),
     (json.dumps({"format": "lorascout-capture", "version": 1}), "field 'profile'"),
+    (json.dumps({"format": "lorascout-capture", "version": 1, "profile": "x", "fingerprints": ["0x1"]}),
+     "field 'fingerprints': expected an object"),
+    (json.dumps({"format": "lorascout-capture", "version": 1, "profile": "x", "fingerprints": {"core": "zz"}}),
+     "field 'fingerprints.core': expected hex"),
+    (json.dumps({"format": "lorascout-capture", "version": 1, "profile": "x", "schema_fingerprint": "0x10000"}),
+     "field 'schema_fingerprint': '0x10000' is not a 16-bit value"),
 ])
 def test_bad_headers(tmp_path, first, msg):
     path = tmp_path / "h.jsonl"
@@ -114,3 +124,12 @@ def test_binary_and_missing_files(tmp_path):
         read_capture(path)
     with pytest.raises(CaptureError, match="cannot open"):
         read_capture(tmp_path / "nope.jsonl")
+
+
+def test_header_fingerprints_absent_or_from_before_dialects(tmp_path):
+    path = tmp_path / "h.jsonl"
+    path.write_text(HEADER + "\n")
+    assert read_capture(path)[0].fingerprints is None
+    path.write_text(json.dumps({"format": "lorascout-capture", "version": 1, "profile": "x",
+                                "schema_fingerprint": "0x762D"}) + "\n")
+    assert read_capture(path)[0].fingerprints == {LEGACY_FINGERPRINT_NAME: 0x762D}

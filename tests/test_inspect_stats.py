@@ -6,6 +6,8 @@ import pytest
 
 from firmware.comms.frame import decode_frame, encode_frame
 from firmware.comms.link import LinkLayer
+from firmware.schemes import all_dialects
+from firmware.schemes.bayer_faigl.records import DIALECT as BF
 from hal.lora import profile
 from hal.samples import RadioRxFrame
 from host_tools import cli
@@ -38,7 +40,7 @@ class Radio:
 def simulate(prof, n_nodes=3, seconds=120, lose_every=5):
     """Every node sends a pose each second and a vertex every 3 s; receiver 2 loses every
     `lose_every`-th frame it would have heard (injected), receivers that transmit miss frames."""
-    links = [LinkLayer(i, prof) for i in range(n_nodes)]
+    links = [LinkLayer(i, prof, dialect=BF) for i in range(n_nodes)]
     radios = [Radio(prof) for _ in range(n_nodes)]
     air, heard_by_2 = [], 0
     truth_lost = {}          # (origin, receiver) -> seqs lost
@@ -117,9 +119,9 @@ def test_rate_and_window_figures():
                                                                         presence=0, e_inf_code=0, info_version=0))]), ())
          for t in range(10)]
     st = sender_stats(a, prof)[1]
-    assert st.frames == 10 and st.bytes == 210 and st.airtime_us == 1_000_000
-    assert st.duration_s == pytest.approx(9.1) and st.bytes_per_s == pytest.approx(210 / 9.1)
-    assert st.peak_bytes_per_s_10s == pytest.approx(21.0)
+    assert st.frames == 10 and st.bytes == 220 and st.airtime_us == 1_000_000     # 22-byte frames
+    assert st.duration_s == pytest.approx(9.1) and st.bytes_per_s == pytest.approx(220 / 9.1)
+    assert st.peak_bytes_per_s_10s == pytest.approx(22.0)
     assert st.duty_cycle_max_by_sub_band == {"g1": pytest.approx(1_000_000 / 3_600_000_000)}
     assert st.duty_cycle_limit_by_sub_band == {"g1": 0.01}
     assert st.seq_lost_on_air == 2
@@ -157,7 +159,8 @@ def test_cli_text_marks_rejections_and_names_fields(tmp_path, network, capsys):
     out = capsys.readouterr().out
     assert "profile eu868-g3, 12 frames" in out
     assert "REJECTED BAD_CRC" in out and "decode: ok=11, bad_crc=1" in out
-    assert "pose    sender_id=0 x_cm=0 y_cm=0 yaw_cdeg=0 speed_cmps=10 exploring=1 (bool)" in out
+    assert "core.pose          sender_id=0 x_cm=0 y_cm=0 yaw_cdeg=0 speed_cmps=10 exploring=1 (bool)" in out
+    assert "dialect 1 bayer_faigl" in out and "bayer_faigl.topo" in out
     assert "per-sender statistics" in out and "g3:" in out and "/ 10 %" in out
     assert cli.main(["inspect", str(path), "--summary"]) == 0
     assert "REJECTED" not in capsys.readouterr().out
@@ -171,6 +174,9 @@ def test_cli_json_and_pcap(tmp_path, network, capsys):
     assert doc["reasons"]["bad_crc"] == 1 and len(doc["frames"]) == 12
     f0 = doc["frames"][0]
     assert f0["reason"] == "ok" and f0["records"][0]["type"] in ("pose", "topo")
+    assert {(r["dialect"], r["type"]) for fr in doc["frames"] if fr["reason"] == "ok" for r in fr["records"]} == {
+        ("core", "pose"), ("bayer_faigl", "topo")}
+    assert doc["header"]["fingerprints"] == {n: f"0x{fp:04X}" for n, fp in all_dialects().fingerprints().items()}
     assert set(doc["senders"]) <= {"0", "1", "2"}
     n_rx = sum(1 for fr in doc["frames"] for r in fr["receptions"] if r["fate"] == "received")
     linktype, pkts = read_pcap(pcap)
@@ -187,4 +193,30 @@ def test_cli_errors_and_helpers(tmp_path, capsys):
     assert cli.main(["inspect"]) == 1 and "nothing to do" in capsys.readouterr().err
     lua = tmp_path / "x.lua"
     assert cli.main(["inspect", "--write-dissector", str(lua), "--schema"]) == 0
-    assert "loratap.syncword" in lua.read_text() and "### `topo`" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "loratap.syncword" in lua.read_text() and "### `topo` (dialect 1, code 1" in out
+    for d in all_dialects():
+        assert f"## Dialect {d.id} `{d.name}` (fingerprint 0x{d.fingerprint:04X})" in out
+
+
+def test_cli_warns_for_each_capture_dialect_it_will_fail_to_check(tmp_path, network, capsys):
+    import dataclasses
+
+    from firmware.comms.schema import CORE, SENDER, Dialect, DialectSet, Field, RecordType
+    prof, _, air, _ = network
+    topo = BF.by_name["topo"]
+    changed = Dialect(BF.id, BF.name, (dataclasses.replace(topo, doc="", fields=tuple(
+        dataclasses.replace(f, hi=100) if f.name == "z_cm" else f for f in topo.fields)),))
+    other = Dialect(9, "other", (RecordType(1, "blip", 1, (SENDER,)),))
+    same, theirs = tmp_path / "same.jsonl", tmp_path / "theirs.jsonl"
+    for path, dialects in ((same, None), (theirs, DialectSet([CORE, changed, other]))):
+        with CaptureWriter(path, prof.name, dialects=dialects) as w:
+            w.write(air[0])
+    assert cli.main(["inspect", str(same), "--summary"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert cli.main(["inspect", str(theirs), "--summary"]) == 0
+    err = capsys.readouterr().err
+    assert f"capture dialect 'bayer_faigl' fingerprint 0x{changed.fingerprint:04X} differs from ours " \
+           f"0x{BF.fingerprint:04X}; its frames will fail the CRC" in err
+    assert f"capture dialect 'other' (fingerprint 0x{other.fingerprint:04X}) is not one of ours" in err
+    assert "'core'" not in err

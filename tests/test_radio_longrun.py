@@ -4,6 +4,7 @@ inspector's per-sender statistics agree with the link layers' counters."""
 import pytest
 
 from firmware.comms.link import LinkLayer
+from firmware.schemes.bayer_faigl.records import DIALECT as BF
 from hal.lora import PROFILES
 from hal.sim.radio import SimRadioModem
 from host_tools.cmd_inspect import sender_stats
@@ -46,7 +47,7 @@ def test_duty_cycle_and_inspector_agree_over_two_hours(name):
     for i in range(n):
         channel.attach(i, lambda i=i: (3.0 * i, 0.0))
     radios = [SimRadioModem(channel, i, clock) for i in range(n)]
-    links = [LinkLayer(i, prof) for i in range(n)]
+    links = [LinkLayer(i, prof, dialect=BF) for i in range(n)]   # robots running Bayer & Faigl
     k = 0
     while clock.t < SIM_US:
         for i, (link, radio) in enumerate(zip(links, radios)):

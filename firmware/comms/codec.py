@@ -1,4 +1,7 @@
-"""Pack and unpack single records by the schema table.
+"""Pack and unpack single records by their schema table row.
+
+A record type is given as its RecordType or by name (looked up in every known dialect,
+schema.record_type).
 
 Encoding is for our own data, so a value out of range is a programming error: ValueError
 naming the record, field and range. Decoding is for bytes from the air, so it never raises:
@@ -21,7 +24,8 @@ class Reason(enum.StrEnum):
     TRUNCATED = "truncated"              # fewer bytes than the header says
     BAD_CRC = "bad_crc"                  # CRC mismatch (corruption, or a peer with another schema)
     UNKNOWN_VERSION = "unknown_version"  # version nibble is not ours
-    UNKNOWN_TYPE = "unknown_type"        # frame type or record type code not in the table
+    UNKNOWN_DIALECT = "unknown_dialect"  # the header's dialect id is in no dialect we know
+    UNKNOWN_TYPE = "unknown_type"        # frame type, or record code not in its dialect
     BAD_LENGTH = "bad_length"            # trailing bytes, or groups that do not fill the payload
     OUT_OF_RANGE = "out_of_range"        # a field outside its valid range, or non-zero padding
 
@@ -35,20 +39,21 @@ class RecordDecode(NamedTuple):
     detail: str = ""
 
 
-# Per type: (field, shift from the record's least significant bit, mask, valid min, max)
-_LAYOUT: dict[str, tuple[tuple[str, int, int, bool, int, int], ...]] = {}
+# Per type: (field, shift from the record's least significant bit, mask, valid min, max).
+# Keyed by the RecordType object (kept in the entry so its id is never reused), not its name:
+# two dialect sets may hold different tables under one name (an older peer's, in tests).
+_LAYOUT: dict[int, tuple[RecordType, tuple[tuple[str, int, int, bool, int, int], ...]]] = {}
 
 
 def _layout(rt: RecordType) -> tuple[tuple[str, int, int, bool, int, int], ...]:
-    cached = _LAYOUT.get(rt.name)
-    if cached is None:
+    cached = _LAYOUT.get(id(rt))
+    if cached is None or cached[0] is not rt:
         total = 8 * rt.size_bytes
-        cached = tuple(
+        cached = _LAYOUT[id(rt)] = (rt, tuple(
             (f.name, total - off - f.bits, (1 << f.bits) - 1, f.signed, f.min_value, f.max_value)
             for f, off in rt.field_offsets()
-        )
-        _LAYOUT[rt.name] = cached
-    return cached
+        ))
+    return cached[1]
 
 
 def as_values(rt: RecordType, values: Mapping[str, Any] | Any) -> Mapping[str, Any]:

@@ -3,6 +3,10 @@
 Pure and deterministic: time enters only as `now_us` arguments, the radio only as the HAL
 RadioModem passed to `service`. One instance per robot.
 
+Dialects: a link sends core records and the records of its own dialect (the scheme's, or
+none), and decodes frames of every dialect in its DialectSet, delivering each record as
+(sender, record name, values) whatever dialect it came in.
+
 Per `service(now_us, radio)` call:
 1. drain radio events: decode each received frame, count its reason, drop duplicates by
    (sender, seq) with a 64-frame RFC 1982 window per sender (256 senders at most, so memory
@@ -11,7 +15,8 @@ Per `service(now_us, radio)` call:
 2. if the radio is idle, something waits and (with a TDMA schedule) the robot's slot is open
    long enough: build one frame (relays first, else the
    highest-priority records that fit `max_frame_bytes`: the profile's payload limit,
-   or less under a byte-rate cap whose window holds less; grouped by type), and send
+   or less under a byte-rate cap whose window holds less; grouped by type, core records
+   first; a frame of this link's dialect, or of dialect 0 if it holds core records only), and send
    it only if (a) the sub-band airtime budget holds in the duty-cycle window ending when this
    frame would end (the worst window, see `_duty_cycle_ok`) and (b) with a byte-rate cap,
    the bytes sent in the last RATE_WINDOW_US plus this frame stay within cap x window.
@@ -26,7 +31,8 @@ Counters (`counters`, all present from the start; see counter_names):
                                               to send but waited, by reason
     dropped.queue_full / .too_large / .relay_queue_full   records or relays thrown away
     superseded                                queued records replaced by a newer one (same key)
-    received.<reason>                         frames by decode reason (ok = new, accepted)
+    received.<reason>                         frames by decode reason (ok = new, accepted;
+                                              unknown_dialect = a dialect id not in our set)
     received.duplicate / .own / .records      repeats, own frames heard back, records delivered
     tx_done.ok / tx_done.failed               the modem's transmit-finished events
 """
@@ -42,7 +48,7 @@ from firmware.comms.codec import REASONS, Reason, encode
 from firmware.comms.frame import (MAX_FRAME_BYTES, MAX_HOPS, MAX_RECORDS_PER_GROUP, SEQ_MODULUS,
                                   decode_frame, encode_frame_records, frame_size_bytes, seq_newer,
                                   with_hops)
-from firmware.comms.schema import BY_NAME, record_type
+from firmware.comms.schema import CORE_DIALECT_ID, Dialect, DialectSet, default_dialects
 from hal.interfaces import RadioModem
 from hal.lora import RadioProfile
 from hal.samples import RadioRxFrame, RadioTxDone
@@ -103,17 +109,28 @@ class LinkLayer:
     def __init__(self, node_id: int, profile: RadioProfile, relay_hop_limit: int = 0,
                  byte_rate_cap_Bps: float | None = None, queue_limit: int = 64,
                  relay_queue_limit: int = 8, first_seq: int = 0,
-                 tdma: TdmaSchedule | None = None) -> None:
+                 tdma: TdmaSchedule | None = None, dialect: Dialect | None = None,
+                 dialects: DialectSet | None = None) -> None:
         """relay_hop_limit: hops left written into our frames, and whether we relay others'
         (0 = off). byte_rate_cap_Bps: None takes profile.byte_rate_cap_Bps; float('inf')
         disables a profile's cap. tdma: transmit only in this robot's slot (None: whenever
-        the radio is idle)."""
+        the radio is idle). dialect: the records this robot sends besides the core's (its
+        scheme's dialect; None: core records only). dialects: what it decodes (default:
+        every dialect this firmware knows); it must hold `dialect`."""
         if not 0 <= node_id <= 255:
             raise ValueError(f"node_id {node_id} outside [0, 255]")
         if not 0 <= relay_hop_limit <= MAX_HOPS:
             raise ValueError(f"relay_hop_limit {relay_hop_limit} outside [0, {MAX_HOPS}]")
         if queue_limit < 1 or relay_queue_limit < 1:
             raise ValueError("queue limits must be >= 1")
+        self.dialects = dialects if dialects is not None else default_dialects()
+        if dialect is not None and dialect not in self.dialects:
+            raise ValueError(f"dialect {dialect.name!r} (id {dialect.id}) is not in the link's dialect set")
+        self.dialect = dialect
+        # Record name -> its sort key in a frame: core records first, then own, by code.
+        self._sendable: dict[str, tuple[int, int]] = {
+            r.name: (d.id != CORE_DIALECT_ID, r.code)
+            for d in (self.dialects.core, dialect) if d is not None for r in d.records}
         self.node_id = node_id
         self.profile = profile
         self.relay_hop_limit = relay_hop_limit
@@ -131,9 +148,13 @@ class LinkLayer:
                                    else int(self._rate_Bps * RATE_WINDOW_US / 1_000_000))
         self._sent_log: deque[tuple[int, int]] = deque()   # own (start_us, bytes) in the window
         self._sent_log_bytes = 0
-        # A frame larger than the cap's window could never go.
-        self.max_frame_bytes = min(profile.max_payload_bytes, MAX_FRAME_BYTES,
-                                   self._rate_window_bytes or MAX_FRAME_BYTES)
+        # A frame larger than the cap's window could never go, and under a cap frames are
+        # sized to split the window evenly, so a saturated link uses all of it: a 1000-byte
+        # window holds four 250-byte frames but only three of 252 bytes (76 %).
+        self.max_frame_bytes = min(profile.max_payload_bytes, MAX_FRAME_BYTES)
+        if self._rate_window_bytes is not None:
+            frames_per_window = -(-self._rate_window_bytes // self.max_frame_bytes)
+            self.max_frame_bytes = min(self.max_frame_bytes, self._rate_window_bytes // frames_per_window)
         self._budget_us = (None if profile.duty_cycle is None
                            else round(profile.duty_cycle * profile.duty_cycle_window_us))
         self._tx_log: deque[tuple[int, int]] = deque()   # own (start_us, end_us), this sub-band
@@ -155,10 +176,15 @@ class LinkLayer:
         """Queue one record. Higher priority goes first; equal priority first come first.
         With `key`, a queued record with the same key is replaced (a newer heartbeat makes
         the old one worthless). False if dropped: too large for a frame, or the queue is full
-        of records at least as important. ValueError for values out of range."""
-        rt = record_type(rtype)
+        of records at least as important. ValueError for values out of range, or a record
+        of neither the core nor this link's dialect."""
+        rt = self.dialects.record(rtype)
+        if rt.name not in self._sendable:
+            raise ValueError(f"record {rt.name!r} is of dialect {self.dialects.dialect_of(rt).name!r}; this link "
+                             f"sends core records and "
+                             + (f"{self.dialect.name!r} records" if self.dialect else "no others"))
         data = encode(rt, values)
-        if frame_size_bytes({rt.name: 1}) > self.max_frame_bytes:
+        if frame_size_bytes({rt.name: 1}, self.dialects) > self.max_frame_bytes:
             self._counters["dropped.too_large"] += 1
             return False
         if key is not None:
@@ -254,7 +280,7 @@ class LinkLayer:
 
     def _build_frame(self) -> tuple[bytes, list[list[Any]]]:
         counts: dict[str, int] = {}
-        size = frame_size_bytes({})
+        size = frame_size_bytes({}, self.dialects)
         taken: list[list[Any]] = []
         for e in sorted(self._queue, key=lambda e: (-e[0], e[1])):
             n = counts.get(e[2], 0)
@@ -264,8 +290,9 @@ class LinkLayer:
                 counts[e[2]] = n + 1
                 taken.append(e)
         # Group by type (fewest tags); keep priority order inside a type.
-        ordered = sorted(taken, key=lambda e: BY_NAME[e[2]].code)
+        ordered = sorted(taken, key=lambda e: self._sendable[e[2]])
         frame = encode_frame_records(self.node_id, self._seq, [(e[2], e[3]) for e in ordered],
+                                     dialect=self.dialect, dialects=self.dialects,
                                      hops_left=self.relay_hop_limit)
         return frame, taken
 
@@ -333,7 +360,7 @@ class LinkLayer:
         return False
 
     def _on_frame(self, payload: bytes) -> None:
-        res = decode_frame(payload)
+        res = decode_frame(payload, self.dialects)
         if res.frame is None:
             self._counters[f"received.{res.reason.value}"] += 1
             return
@@ -354,4 +381,5 @@ class LinkLayer:
             elif len(self._relay) >= self.relay_queue_limit:
                 self._counters["dropped.relay_queue_full"] += 1
             else:
-                self._relay.append(with_hops(bytes(payload), f.hops_left - 1, min(MAX_HOPS, f.hops_taken + 1)))
+                self._relay.append(with_hops(bytes(payload), f.hops_left - 1, min(MAX_HOPS, f.hops_taken + 1),
+                                             self.dialects))

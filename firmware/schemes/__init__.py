@@ -2,15 +2,18 @@
 maps to (module, class), and only the scheme asked for is imported.
 
 Adding a scheme: write its package under firmware/schemes/ (a firmware.schemes.base.Scheme
-subclass) and add one line to SCHEMES.
+subclass, with its records' dialect in records.py if it sends any) and add one line to
+SCHEMES. Its dialect then is in all_dialects(): every node decodes it.
 
 A scheme is asked for as NAME or NAME:VARIANT (`bayer-faigl:minpos`); the strategy names of
 the first version (`minpos`, `greedy-full`, ...) stay valid as aliases.
 """
 from __future__ import annotations
 
+import functools
 import importlib
 
+from firmware.comms.schema import CORE, DialectSet
 from firmware.schemes.base import Scheme
 
 SCHEMES: dict[str, tuple[str, str]] = {
@@ -58,3 +61,11 @@ def catalogue() -> list[tuple[str, str]]:
     out = [(spec, scheme_class(resolve(spec)[0]).variants[resolve(spec)[1]]) for spec in specs()]
     out.extend((alias, f"= {spec}") for alias, spec in ALIASES.items())
     return out
+
+
+@functools.cache
+def all_dialects() -> DialectSet:
+    """The core dialect plus every registered scheme's dialect: what every node decodes.
+    A scheme class without a dialect of its own (none, or one taken from a scheme it
+    composes at run time) adds nothing; that scheme's dialect comes with its own line."""
+    return DialectSet([CORE] + [d for name in SCHEMES if (d := scheme_class(name).dialect) is not None])

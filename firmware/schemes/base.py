@@ -1,7 +1,8 @@
 """The interface every coordination scheme implements, and what the firmware hands it.
 
-A scheme declares its name, its variants, the record types it owns (its dialect) and what
-it needs from the HAL. The agent gives it the shared services (`Services`) once, then tells
+A scheme declares its name, its variants, the record types it owns (its dialect, a
+firmware.comms.schema.Dialect defined in its package's records.py) and what it needs from
+the HAL. The agent gives it the shared services (`Services`) once, then tells
 it what happens: records received from its dialect, travel, the end of a target, the end of
 a planning cycle. It may add periodic tasks of its own. In each planning cycle it owns one
 stage, in two steps, run by the shared planner (firmware.services.planner):
@@ -26,6 +27,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from firmware.comms.schema import Dialect
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Task
 from firmware.services.local_map import BinnedScan, LocalMap
@@ -89,7 +91,7 @@ class Scheme(ABC):
     doc: ClassVar[str]
     variants: ClassVar[Mapping[str, str]] = {"": ""}   # variant -> what it does
     default_variant: ClassVar[str] = ""
-    records: ClassVar[tuple[str, ...]] = ()            # record type names of its dialect
+    dialect: ClassVar[Dialect | None] = None           # its records on the air (None: sends none of its own)
     needs: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, variant: str = "") -> None:
@@ -104,6 +106,11 @@ class Scheme(ABC):
             raise ValueError(f"scheme {cls.name!r} has no variant {variant!r}; "
                              f"known: {', '.join(v for v in cls.variants if v) or 'none'}")
         return variant
+
+    @property
+    def records(self) -> tuple[str, ...]:
+        """The names of its dialect's record types."""
+        return tuple(r.name for r in self.dialect.records) if self.dialect is not None else ()
 
     @property
     def spec(self) -> str:

@@ -27,14 +27,13 @@ import math
 import numpy as np
 from numba import njit
 
-from firmware.comms.schema import record_type
-
-# A topo record as on the wire: its values in the order of the schema table's fields
-# (sender_id, x_cm, y_cm, z_cm, presence, e_inf_code, info_version).
+# One record of the map: the columns fold_records reads, in this order. Bayer & Faigl's
+# `topo` record (firmware/schemes/bayer_faigl/records.py) carries exactly these fields in
+# this order, checked where it is defined, so a decoded record is a row as it is. The map is
+# a shared service (schemes without a radio keep one of their own places too), so it does
+# not import a scheme's dialect.
+TOPO_FIELDS = ("sender_id", "x_cm", "y_cm", "z_cm", "presence", "e_inf_code", "info_version")
 TopoRecord = tuple[int, int, int, int, int, int, int]
-TOPO_FIELDS = tuple(f.name for f in record_type("topo").fields)
-assert len(TOPO_FIELDS) == 7, "fold_records reads seven values per topo record"
-MAX_INFO_VERSION = (1 << record_type("topo").fields[TOPO_FIELDS.index("info_version")].bits) - 1
 
 _CELL_OFFSET = 1 << 20
 

@@ -18,13 +18,13 @@ from collections.abc import Mapping
 import numpy as np
 
 from firmware import kernels
-from firmware.comms.schema import e_inf_bit_to_code
 from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, Candidate, PlanningView, Scheme, Services,
                                    cost_along_graph)
 from firmware.schemes.bayer_faigl.presence import PresenceRule
+from firmware.schemes.bayer_faigl.records import DIALECT, MAX_INFO_VERSION, e_inf_bit_to_code
 from firmware.services.pose import TravelMilestones
 from firmware.services.targets import REACHED, Target
-from firmware.services.topo_map import MAX_INFO_VERSION, TOPO_FIELDS
+from firmware.services.topo_map import TOPO_FIELDS
 from hal.samples import OdometrySample
 
 # An information-change record is sent when a vertex's e_inf code moves this far from what
@@ -39,7 +39,7 @@ class BayerFaigl(Scheme):
     variants = {"greedy": "closest target on the shared topological map",
                 "minpos": "lowest MinPos rank on the shared topological map, ties by Greedy"}
     default_variant = "minpos"
-    records = ("topo",)
+    dialect = DIALECT
     needs = frozenset({"radio", "shared_frame"})
 
     def attach(self, services: Services) -> None:

@@ -32,7 +32,7 @@ class DenseBaseline(Scheme):
         super().__init__(variant)
         from firmware.schemes import build    # the registry; composing, not importing a scheme
         self.inner = build(INNER[self.variant])
-        self.records = self.inner.records
+        self.dialect = self.inner.dialect     # it sends the inner scheme's records, no others
 
     def needs_of(self) -> frozenset[str]:
         return self.needs | self.inner.needs_of()
