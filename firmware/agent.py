@@ -64,6 +64,7 @@ class ExplorerAgent:
         self.link = (LinkLayer(hal.robot_id, radio_profile,
                                tdma=TdmaSchedule.for_team(radio_profile, team_size, hal.robot_id,
                                                           round(1_000_000 / rates.radio_hz)),
+                               relay_hop_limit=self.scheme.relay_hops if "relay" in needs else 0,
                                dialect=self.scheme.dialect, dialects=all_dialects())
                      if "radio" in needs else None)
         self.scheduler = Scheduler([

@@ -115,3 +115,20 @@ def test_a_scheme_that_needs_a_shared_frame_refuses_odometry_in_a_frame_of_its_o
     agent = ExplorerAgent(fake.hal(), scheme="independent")
     agent.setup()
     assert fake.run(agent, 30).done, "a robot alone does not care which frame it maps in"
+
+
+def test_a_scheme_that_needs_relaying_gets_a_link_that_floods():
+    from firmware.schemes.base import Scheme
+
+    class Gossip(Scheme):
+        name, doc = "gossip", "a test scheme that needs multi-hop"
+        needs = frozenset({"radio", "relay"})
+        relay_hops = 4
+
+        def rank(self, view, own):
+            return own
+
+    fake = ScriptedHal(np.full(360, 3.0))
+    relaying = ExplorerAgent(fake.hal(), scheme=Gossip(), radio_profile=profile("eu868-g3"))
+    plain = ExplorerAgent(fake.hal(), scheme="bayer-faigl:minpos", radio_profile=profile("eu868-g3"))
+    assert relaying.link.relay_hop_limit == 4 and plain.link.relay_hop_limit == 0

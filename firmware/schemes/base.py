@@ -93,6 +93,7 @@ class Scheme(ABC):
     default_variant: ClassVar[str] = ""
     dialect: ClassVar[Dialect | None] = None           # its records on the air (None: sends none of its own)
     needs: ClassVar[frozenset[str]] = frozenset()
+    relay_hops: ClassVar[int] = 3      # with "relay" in needs: how many hops its frames may travel
 
     def __init__(self, variant: str = "") -> None:
         self.variant = self.checked_variant(variant)
