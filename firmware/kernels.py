@@ -287,6 +287,15 @@ def _settle_top(traversable, cell_cost, dist, parent, keys, vals, pos, n):
 
 
 @njit(cache=True)
+def _mask_of(flat, n_cells):
+    """A mask over n_cells, true at the flat indices given."""
+    mask = np.zeros(n_cells, np.bool_)
+    for f in flat:
+        mask[f] = True
+    return mask
+
+
+@njit(cache=True)
 def dijkstra_settle(traversable, cell_cost, dist, parent, keys, vals, pos, size, want_flat):
     """Run the search of dijkstra_start until every cell in want_flat is settled (its dist
     and parent final) or nothing is left to settle; an empty want_flat runs it to the end.
@@ -296,16 +305,13 @@ def dijkstra_settle(traversable, cell_cost, dist, parent, keys, vals, pos, size,
     settled cell's dist and parent are those of the full search. It holds each cell at
     most once (a better cost moves the cell up in place), which keeps it small on open maps.
     """
-    rows, cols = traversable.shape
     waiting = 0
     for f in want_flat:
         if pos[f] != -2:
             waiting += 1
     if waiting == 0 and want_flat.shape[0] > 0:
         return
-    wanted = np.zeros(rows * cols, np.bool_)
-    for f in want_flat:
-        wanted[f] = True
+    wanted = _mask_of(want_flat, pos.shape[0])
     n = size[0]
     while n > 0:
         flat, n = _settle_top(traversable, cell_cost, dist, parent, keys, vals, pos, n)
@@ -326,10 +332,7 @@ def dijkstra_settle_first(traversable, cell_cost, dist, parent, keys, vals, pos,
     for f in want_flat:
         if pos[f] == -2:
             return
-    rows, cols = traversable.shape
-    wanted = np.zeros(rows * cols, np.bool_)
-    for f in want_flat:
-        wanted[f] = True
+    wanted = _mask_of(want_flat, pos.shape[0])
     n = size[0]
     while n > 0:
         flat, n = _settle_top(traversable, cell_cost, dist, parent, keys, vals, pos, n)

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import bisect
-import math
 import sys
 import time
 from collections import Counter

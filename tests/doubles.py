@@ -155,6 +155,21 @@ class PlannerRig:
         return self.scheme.stats()[name]
 
 
+def in_thread(fn):
+    """Run fn() on a daemon thread: (the thread, a box that gets "value" or "error")."""
+    box: dict = {}
+
+    def run():
+        try:
+            box["value"] = fn()
+        except BaseException as e:  # handed to the test thread
+            box["error"] = e
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    return t, box
+
+
 class FakePort:
     """Records what a virtual modem asks of the Channel (radio_sim.rn2483.AirPort); answers
     transmit as the Channel does, with the profile's airtime at the profile's operating point

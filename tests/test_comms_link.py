@@ -7,7 +7,7 @@ from hypothesis import given, settings, strategies as st
 
 from firmware.comms.frame import decode_frame, encode_frame, with_hops
 from firmware.comms.link import RATE_WINDOW_US, TDMA_GUARD_US, LinkLayer, TdmaSchedule, counter_names
-from firmware.comms.schema import CORE, SENDER, Dialect, DialectSet, Field, RecordType
+from firmware.comms.schema import SENDER, Dialect, DialectSet, Field, RecordType
 from firmware.schemes import all_dialects
 from firmware.schemes.bayer_faigl.records import DIALECT as BF
 from hal.interfaces import RadioModem

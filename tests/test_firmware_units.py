@@ -8,7 +8,6 @@ from firmware.services.motion import PathFollower
 from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task
-from firmware.services.topo_map import TopoMap
 from firmware import kernels
 
 

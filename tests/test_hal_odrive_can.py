@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hal.odrive_can import (AXIS_STATE_CLOSED_LOOP_CONTROL, AXIS_STATE_IDLE, CONTROL_MODE_VELOCITY,
-                            GET_ENCODER_ESTIMATES, HEARTBEAT, SET_AXIS_STATE, SET_CONTROLLER_MODE, SET_INPUT_VEL,
+                            GET_ENCODER_ESTIMATES, SET_AXIS_STATE, SET_CONTROLLER_MODE, SET_INPUT_VEL,
                             DiffDriveGeometry, OdriveDiffDrive, OdriveWheelOdometry, encoder_estimates, frame_id,
                             heartbeat, set_input_vel)
 from hal.registry import backend_class

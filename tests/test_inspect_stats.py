@@ -202,7 +202,7 @@ def test_cli_errors_and_helpers(tmp_path, capsys):
 def test_cli_warns_for_each_capture_dialect_it_will_fail_to_check(tmp_path, network, capsys):
     import dataclasses
 
-    from firmware.comms.schema import CORE, SENDER, Dialect, DialectSet, Field, RecordType
+    from firmware.comms.schema import CORE, SENDER, Dialect, DialectSet, RecordType
     prof, _, air, _ = network
     topo = BF.by_name["topo"]
     changed = Dialect(BF.id, BF.name, (dataclasses.replace(topo, doc="", fields=tuple(

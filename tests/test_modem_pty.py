@@ -4,7 +4,6 @@ clock time, driven by plain pyserial, by our backend, and by a third-party RN248
 from __future__ import annotations
 
 import signal
-import threading
 import time
 
 import pytest
@@ -13,7 +12,7 @@ import serial
 from hal.lora import PROFILES
 from hal.rn2483 import Rn2483Modem
 from hal.samples import RadioRxFrame, RadioTxDone
-from tests.doubles import ModemServer
+from tests.doubles import ModemServer, in_thread
 
 PROFILE = PROFILES["eu868-g3"]
 SETUP = ("mac pause", "radio set mod lora", "radio set freq 869525000", "radio set sf sf7",
@@ -77,20 +76,6 @@ def test_our_backend_over_the_wall_clock_server():
         assert server.stop() == 0
 
 
-def _in_thread(fn):
-    box: dict = {}
-
-    def run():
-        try:
-            box["value"] = fn()
-        except BaseException as e:  # handed to the test thread
-            box["error"] = e
-
-    t = threading.Thread(target=run, daemon=True)
-    t.start()
-    return t, box
-
-
 def test_third_party_loranode_library_transmits_and_receives():
     loranode = pytest.importorskip("loranode")  # test extra: loranode==0.0.4
     with ModemServer(2) as server:
@@ -120,7 +105,7 @@ def test_third_party_loranode_library_transmits_and_receives():
             assert [f.payload for f in frames] == [b"LibToOurs"]
 
             # our backend -> library (recv_p2p blocks in `radio rx 0` until a frame comes)
-            t, box = _in_thread(lib.recv_p2p)
+            t, box = in_thread(lib.recv_p2p)
             deadline = time.monotonic() + 8
             while t.is_alive() and time.monotonic() < deadline:
                 if not ours.busy():

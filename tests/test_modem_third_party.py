@@ -8,7 +8,6 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 import pytest
@@ -17,7 +16,7 @@ from hal import rn2483_protocol as P
 from hal.lora import PROFILES
 from hal.rn2483 import Rn2483Modem
 from hal.samples import RadioRxFrame
-from tests.doubles import ModemServer
+from tests.doubles import ModemServer, in_thread
 
 PROFILE = PROFILES["eu868-g3"]
 
@@ -35,20 +34,6 @@ assert {name for name, _, _ in EVERY_RADIO_SET} == {
     "sync", "bw", "bt"}
 
 
-def _in_thread(fn):
-    box: dict = {}
-
-    def run():
-        try:
-            box["value"] = fn()
-        except BaseException as e:  # handed to the test thread
-            box["error"] = e
-
-    t = threading.Thread(target=run, daemon=True)
-    t.start()
-    return t, box
-
-
 def _configure(lib, settings):
     for name, value, readback in settings:
         assert lib.serial_sr(f"radio set {name}", value) == "ok", (name, value)
@@ -60,7 +45,7 @@ def _receive_with(lib, sender, payload_hex: str, timeout_s: float = 20.0) -> str
     the race) while `sender` transmits once with `send_p2p`; the hex `lib` received, or None
     if its reception ended in `radio_err`."""
     assert lib.serial_sr("radio rx", "0") == "ok"
-    t, box = _in_thread(lib.serial_r)            # the line that ends the reception
+    t, box = in_thread(lib.serial_r)            # the line that ends the reception
     sender.send_p2p(payload_hex)
     t.join(timeout=timeout_s)
     assert not t.is_alive(), "no line ended the reception"
@@ -131,7 +116,7 @@ def test_loranode_and_our_backend_on_the_network_operating_point():
             assert [f.payload for f in frames] == [b"LibToOurs"]
             assert -32 <= frames[0].snr_db <= 32 and frames[0].rssi_dbm < 0
 
-            t, box = _in_thread(lib.recv_p2p)
+            t, box = in_thread(lib.recv_p2p)
             deadline = time.monotonic() + 8
             while t.is_alive() and time.monotonic() < deadline:
                 if not ours.busy():

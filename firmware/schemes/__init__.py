@@ -58,7 +58,10 @@ def specs() -> list[str]:
 
 def catalogue() -> list[tuple[str, str]]:
     """(spec, what it does) for every scheme and variant, and every alias, for --help."""
-    out = [(spec, scheme_class(resolve(spec)[0]).variants[resolve(spec)[1]]) for spec in specs()]
+    out = []
+    for spec in specs():
+        name, variant = resolve(spec)
+        out.append((spec, scheme_class(name).variants[variant]))
     out.extend((alias, f"= {spec}") for alias, spec in ALIASES.items())
     return out
 
