@@ -2,10 +2,10 @@
 
 The firmware's numba kernels run on one thread here unless NUMBA_NUM_THREADS says
 otherwise. A host runs many missions at once (a sweep's workers, a test suite, other work
-on a shared machine), and there numba's spinning worker threads cost far more than the
-second core gains: one 300 s team mission took 114 to 271 s with its default threads next
-to other work, against 38 to 42 s on one thread, while on an idle machine the second
-thread gains 8 to 20 %. Set before numba is imported, which reads it once."""
+on a shared machine), and there numba's second thread costs far more than it gains: a
+three-robot mission took 3.7 times the CPU and 2.7 times the wall time on two threads as on
+one, next to other work (README, "Firmware speed"). Set before numba is imported, which
+reads it once."""
 import os
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
