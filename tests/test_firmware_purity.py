@@ -4,7 +4,7 @@ import ast
 from pathlib import Path
 
 FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
-ALLOWED_ROOTS = {"firmware", "numpy", "numba", "networkx", "crcmod", "math", "heapq", "dataclasses",
+ALLOWED_ROOTS = {"firmware", "numpy", "numba", "crcmod", "math", "heapq", "dataclasses",
                  "typing", "__future__", "enum", "functools", "itertools", "collections", "struct",
                  "bisect", "hashlib", "zlib", "fractions", "abc",
                  "importlib"}   # the scheme registry imports only the scheme asked for
