@@ -18,16 +18,9 @@ from radio_sim.channel import Channel
 from radio_sim.faults import FaultParams
 from radio_sim.virtual_modem import LockstepSerialRadios, ModemBank, open_serial_radios
 from world_sim.seeding import stream
+from tests.doubles import StepClock
 
 PROFILE = PROFILES["eu868-g3"]
-
-
-class StepClock:
-    def __init__(self) -> None:
-        self.t_us = 0
-
-    def now_us(self) -> int:
-        return self.t_us
 
 
 def serial_radios(channel, clock, node_ids, profile):

@@ -9,17 +9,10 @@ from hal.lora import PROFILES
 from hal.sim.radio import SimRadioModem
 from host_tools.cmd_inspect import sender_stats
 from radio_sim.channel import Channel
+from tests.doubles import StepClock
 
 TICK_US = 100_000
 SIM_US = 2 * 3_600_000_000 + 600_000_000   # two hours and ten minutes
-
-
-class _Clock:
-    def __init__(self):
-        self.t = 0
-
-    def now_us(self):
-        return self.t
 
 
 class _ListenOnly:
@@ -40,7 +33,7 @@ class _ListenOnly:
 def test_duty_cycle_and_inspector_agree_over_two_hours(name):
     prof = PROFILES[name]
     channel = Channel(prof, seed=4)
-    clock = _Clock()
+    clock = StepClock()
     air = []
     channel.add_sink(air.append)
     n = 3
@@ -49,18 +42,18 @@ def test_duty_cycle_and_inspector_agree_over_two_hours(name):
     radios = [SimRadioModem(channel, i, clock) for i in range(n)]
     links = [LinkLayer(i, prof, dialect=BF) for i in range(n)]   # robots running Bayer & Faigl
     k = 0
-    while clock.t < SIM_US:
+    while clock.t_us < SIM_US:
         for i, (link, radio) in enumerate(zip(links, radios)):
             while link.queue_len < 20:   # always more to say than the law allows
                 k += 1
                 link.enqueue("topo", dict(sender_id=i, x_cm=k % 100000, y_cm=i, z_cm=0, presence=1,
                                           e_inf_code=k % 256, info_version=k % 128))
-            link.service(clock.t, radio)
-        clock.t += TICK_US
-        channel.advance_to(clock.t)
+            link.service(clock.t_us, radio)
+        clock.t_us += TICK_US
+        channel.advance_to(clock.t_us)
     # Let every link hear what already arrived, without starting another frame.
     for link, radio in zip(links, radios):
-        link.service(clock.t, _ListenOnly(radio))
+        link.service(clock.t_us, _ListenOnly(radio))
     stats = sender_stats(air, prof, duration_us=SIM_US)
     for link in links:
         c, st = link.counters, stats[link.node_id]
