@@ -1,4 +1,5 @@
 import os
+import signal
 from pathlib import Path
 
 # The host tools run numba on one thread unless told otherwise (host_tools/__init__.py); the
@@ -66,3 +67,13 @@ def tree_state(root: Path) -> dict[str, bytes | None]:
     for p in sorted(root.rglob("*")):
         state[str(p.relative_to(root))] = p.read_bytes() if p.is_file() else None
     return state
+
+
+@pytest.fixture
+def sigint_as_in_a_terminal():
+    """Ctrl-C delivered as under a terminal (Python's KeyboardInterrupt handler), even when
+    the test run itself was started with SIGINT ignored (in the background, by some CI
+    runners); the handler before the test is put back after it."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)

@@ -155,6 +155,13 @@ class PlannerRig:
         return self.scheme.stats()[name]
 
 
+def deliverable_sigint() -> None:
+    """Popen's preexec_fn for a child a test will interrupt: SIGINT at its default, as under
+    a terminal. A test run started in the background (`make test &`, some CI runners)
+    inherits SIGINT ignored, and a Python child would then never see its Ctrl-C."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def in_thread(fn):
     """Run fn() on a daemon thread: (the thread, a box that gets "value" or "error")."""
     box: dict = {}
@@ -262,7 +269,7 @@ class ModemServer:
     def __init__(self, count: int, *extra: str):
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "host_tools.cli", "modem", "--count", str(count), *extra],
-            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=deliverable_sigint,
         )
         self.paths = [self.proc.stdout.readline().strip() for _ in range(count)]
         if not all(p.startswith("/dev/") for p in self.paths):

@@ -16,7 +16,7 @@ from hal import rn2483_protocol as P
 from hal.lora import PROFILES
 from hal.rn2483 import Rn2483Modem
 from hal.samples import RadioRxFrame
-from tests.doubles import ModemServer, in_thread
+from tests.doubles import ModemServer, deliverable_sigint, in_thread
 
 PROFILE = PROFILES["eu868-g3"]
 
@@ -138,7 +138,7 @@ def _loramdm(path: str, commands: list[str], *extra: str) -> subprocess.Popen:
     # -s: pause after each command line; -t: read timeout (it reads until the line is quiet).
     return subprocess.Popen([sys.executable, "-m", "loramdm", f"-d{path}", f"-b{P.BAUDRATE}", "-s0.02", "-t0.1",
                              ";".join(commands), *extra],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=deliverable_sigint)
 
 
 def test_loramdm_cli_configures_every_parameter_and_its_frames_cross_the_air():

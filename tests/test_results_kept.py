@@ -18,6 +18,7 @@ from host_tools.capture import CaptureError, CaptureWriter, read_capture
 from host_tools.safe_io import strict_dumps, strict_loads
 from radio_sim.air_log import RECEIVED, AirFrame, Reception
 from tests.conftest import REPO, tree_state
+from tests.doubles import deliverable_sigint
 
 TOPO = dict(sender_id=3, x_cm=10, y_cm=-20, z_cm=0, presence=1, e_inf_code=77, info_version=0)
 LORASCOUT = [sys.executable, "-c", "import sys; from host_tools.cli import main; sys.exit(main())"]
@@ -139,7 +140,7 @@ def test_a_failed_mission_leaves_an_earlier_capture_alone(tmp_path, cli):
 
 # ---- Ctrl-C ----------------------------------------------------------------------------------
 
-def test_ctrl_c_ends_a_run_with_a_partial_report_and_status_130(tmp_path, cli, monkeypatch):
+def test_ctrl_c_ends_a_run_with_a_partial_report_and_status_130(tmp_path, cli, monkeypatch, sigint_as_in_a_terminal):
     import host_tools.cmd_run as cmd_run
     from host_tools.progress import progress_bar
 
@@ -169,6 +170,7 @@ def test_ctrl_c_stops_a_sweep_and_keeps_every_finished_trial(tmp_path):
     argv = ["sweep", "--maps", "cave:4:40x40", "--strategies", "minpos", "--robots", "2", "--seeds", "6",
             "--max-sim-s", "20", "--jobs", "2", "--out", str(out)]
     proc = subprocess.Popen(LORASCOUT + argv, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=deliverable_sigint,
                             env={**os.environ, "NUMBA_NUM_THREADS": "1"})
     err_lines = []
     for line in proc.stderr:                        # one line per finished trial (no terminal)
