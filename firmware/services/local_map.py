@@ -129,42 +129,6 @@ class MapLayers:
     cell_cost: np.ndarray      # >= 1, grows near walls and unknown space
 
 
-class SightChanges:
-    """When each cell of the sight layer last changed, counted in layers() calls (epochs),
-    in the window's current frame; a cell the window newly covers changed then. What a
-    cache of ray casts over the sight layer needs to know that it still holds."""
-
-    def __init__(self) -> None:
-        self.epoch = 0
-        self.changed_at: np.ndarray | None = None     # epoch per window cell
-        self._prev: np.ndarray | None = None
-        self._prev_origin = (0, 0)
-
-    def update(self, sight: np.ndarray, row0: int, col0: int) -> None:
-        self.epoch += 1
-        changed_at = np.full(sight.shape, self.epoch, np.int32)
-        if self._prev is not None and self._prev.shape == sight.shape:
-            n_r, n_c = sight.shape
-            di, dj = row0 - self._prev_origin[0], col0 - self._prev_origin[1]
-            src = (slice(max(di, 0), min(n_r + di, n_r)), slice(max(dj, 0), min(n_c + dj, n_c)))
-            dst = (slice(max(-di, 0), min(n_r - di, n_r)), slice(max(-dj, 0), min(n_c - dj, n_c)))
-            same = self._prev[src] == sight[dst]
-            changed_at[dst] = np.where(same, self.changed_at[src], self.epoch)
-        self.changed_at = changed_at
-        self._prev = sight.copy()
-        self._prev_origin = (row0, col0)
-
-    def unchanged_since(self, epoch: int, i0: int, i1: int, j0: int, j1: int) -> bool:
-        """Has no cell of the window box [i0, i1) x [j0, j1) changed after `epoch`, and
-        does the box lie inside the window?"""
-        if self.changed_at is None:
-            return False
-        n_r, n_c = self.changed_at.shape
-        if i0 < 0 or j0 < 0 or i1 > n_r or j1 > n_c:
-            return False
-        return int(self.changed_at[i0:i1, j0:j1].max()) <= epoch
-
-
 def close_wall_gaps(state: np.ndarray) -> np.ndarray:
     """Unknown cells touching a wall cell count as wall for line of sight. Far walls are hit
     by beams more than a cell apart, so their occupied cells have unknown gaps; rays slipping
@@ -193,7 +157,6 @@ class LocalMap:
         self.pager = TilePager()
         self.row0, self.col0 = self._anchor_for(x_m, y_m)
         self.bumps: list[tuple[float, float]] = []   # obstacles felt, not seen (mark_obstacle_ahead)
-        self.sight_changes = SightChanges()          # updated by every layers()
 
     # --- geometry -------------------------------------------------------------------
     def _anchor_for(self, x_m: float, y_m: float) -> tuple[int, int]:
@@ -322,6 +285,4 @@ class LocalMap:
             traversable[i0:i1, j0:j1] = (crop == kernels.FREE) & (d_occ_cells >= keep_out_cells)
             near = np.clip((p.clearance_cost_m - d_block_cells * p.resolution_m) / p.clearance_cost_m, 0.0, 1.0)
             cell_cost[i0:i1, j0:j1] = 1.0 + p.clearance_cost_weight * near
-        sight = close_wall_gaps(state)
-        self.sight_changes.update(sight, self.row0, self.col0)
-        return MapLayers(state=state, sight=sight, traversable=traversable, cell_cost=cell_cost)
+        return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable, cell_cost=cell_cost)

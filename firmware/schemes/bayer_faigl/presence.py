@@ -9,7 +9,6 @@ from firmware import kernels
 from firmware.schemes.base import Services
 from firmware.services.grid_paths import line_of_sight
 from firmware.services.targets import Target
-from firmware.services.views import ViewCache
 from firmware.services.waypoints import Waypoint
 
 
@@ -19,8 +18,6 @@ class PresenceRule:
         self.dropped = 0       # waypoints dropped, counted per planning cycle
         self.revived = 0       # waypoints taken back by revive_shared_frontiers
         self._given_up: list[Waypoint] = []   # what the rule dropped, for the breaker
-        p = services.params
-        self._views = ViewCache(p.team_view_rays, p.d_cam_m / p.resolution_m)   # the teammates' places' views
 
     @property
     def given_up(self) -> list[Waypoint]:
@@ -154,7 +151,9 @@ class PresenceRule:
             d2 = ((xy[others, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
             places = others[d2 <= reach2]
             ij, inside = self.s.local_map.cells_of(xy[places])
-            seen = self._views.seen_from(self.s.local_map, sight, ij[inside])
+            seen = np.zeros(sight.shape, bool)
+            kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], self.s.params.team_view_rays,
+                                 self.s.params.d_cam_m / self.s.params.resolution_m, seen)
             team_sight = sight.copy()
             team_sight[seen & (sight == kernels.UNKNOWN)] = kernels.SEEN_BY_TEAM
             wi = np.array([r[1] for r in reported], np.int64)
