@@ -16,7 +16,7 @@ UNKNOWN = np.uint8(0)
 FREE = np.uint8(1)
 OCCUPIED = np.uint8(2)
 # Unknown to this robot but in view of a place a teammate reported being at: not counted as
-# information, and transparent to rays like UNKNOWN (see Explorer._drop_waypoints_seen_by_others).
+# information, and transparent to rays like UNKNOWN (see schemes/bayer_faigl/presence.py).
 SEEN_BY_TEAM = np.uint8(3)
 
 

@@ -47,10 +47,10 @@ class ExplorationParams:
     artifact_types: int = _p(5, 'types', 1, 255, "artifact types a cell may hold (eq. 3's a)")
     candidate_spacing_m: float = _p(1.0, 'm', 0.05, 20.0, 'waypoint candidates are evaluated on this sub-grid')
     info_rays: int = _p(64, 'rays', 1, 4096, 'rays cast from a candidate to count observable cells')
-    # The presence rule (Explorer._drop_waypoints_seen_by_others): a waypoint near places
-    # teammates finished with stays if this much information is out of their view (10 e_min,
-    # about 3.5 m2: a room behind a door), and their view is cast with this many rays
-    # (2 pi d_cam in cells: neighbouring rays one cell apart at d_cam).
+    # The presence rule (schemes/bayer_faigl/presence.py): a waypoint near places teammates
+    # finished with stays if this much information is out of their view (10 e_min, about
+    # 3.5 m2: a room behind a door), and their view is cast with this many rays (2 pi d_cam
+    # in cells: neighbouring rays one cell apart at d_cam).
     presence_keep_bit: float = _p(900.0, 'bit', 0.0, 1e9,
                                   "the presence rule keeps a waypoint with this much out of teammates' view")
     # The robot's own current target (and waypoints within the cluster radius of it) is exempt
@@ -58,7 +58,7 @@ class ExplorationParams:
     presence_holds_target: bool = _p(False, 'bool', None, None,
                                      "exempt the robot's own target from the presence rule")
     team_view_rays: int = _p(600, 'rays', 1, 20000, "rays that cast a teammate's view")
-    # The presence rule's deadlock breaker (Explorer._revive_shared_frontiers; 0: off): a
+    # The presence rule's deadlock breaker (PresenceRule.revive_shared_frontiers; 0: off): a
     # teammate's place within shared_view_m of one of ours saw about what we saw from there,
     # and a waypoint that a teammate stood within revive_clear_m of was seen by it. Only
     # waypoints holding revive_min_bit (about 15 m2 unseen) are taken back: the deadlocked
@@ -77,8 +77,8 @@ class ExplorationParams:
     clearance_cost_weight: float = _p(2.0, '1', 0.0, 1000.0, 'weight of that extra cost')
     waypoint_reached_m: float = _p(0.5, 'm', 0.05, 50.0, 'a target this close is reached')
     # A target whose information the robot saw while this close to it counts as reached
-    # (Explorer.plan) and is banned: a few wall cells turning unknown again can otherwise
-    # make a waypoint there again and again. Farther off, it merely expires, as any does.
+    # (TargetKeeper.end_if_seen_on_way) and is banned: a few wall cells turning unknown again
+    # can otherwise make a waypoint there again and again. Farther off, it merely expires.
     # 0: off, the default. With 1.5 m (commit 3f50bfa) one robot on the Intel lab drove 409 m
     # instead of 1398 m but covered 0.9893 instead of 0.9912, below issue 2's 0.99.
     target_seen_within_m: float = _p(0.0, 'm', 0.0, 50.0,
