@@ -177,6 +177,20 @@ def in_thread(fn):
     return t, box
 
 
+def send_to_a_listening_library(ours, receive, payload: bytes, timeout_s: float = 8.0):
+    """Start `receive()` (a third-party library's blocking receive) on a thread and let our
+    modem backend `ours` transmit `payload` until it returns: the thread's box."""
+    t, box = in_thread(receive)
+    deadline = time.monotonic() + timeout_s
+    while t.is_alive() and time.monotonic() < deadline:
+        if not ours.busy():
+            ours.transmit(payload)
+        ours.poll()
+        time.sleep(0.05)
+    t.join(timeout=1)
+    return box
+
+
 class FakePort:
     """Records what a virtual modem asks of the Channel (radio_sim.rn2483.AirPort); answers
     transmit as the Channel does, with the profile's airtime at the profile's operating point

@@ -10,8 +10,9 @@ import pytest
 
 from hal.bundle import Hal
 from hal.interfaces import Clock, DriveBase, Lidar, Odometry, RadioModem, UwbRanger, WifiAoa
+from hal.null import NullRadioModem
 from hal.registry import backend_class
-from hal.samples import LidarScan, RadioEvent
+from hal.samples import LidarScan
 from hal.sim.aoa import SimWifiAoa
 from hal.sim.clock import SimClock
 from hal.sim.drive import SimDriveBase
@@ -43,17 +44,6 @@ def divided_room() -> OccupancyMap:
     return dataclasses.replace(occ, free=free, name="divided")
 
 
-class NullRadio:
-    def transmit(self, payload: bytes) -> bool:
-        return False
-
-    def busy(self) -> bool:
-        return False
-
-    def poll(self) -> tuple[RadioEvent, ...]:
-        return ()
-
-
 def run(world: World, seconds: float, dt_us: int = 50_000) -> None:
     for _ in range(int(round(seconds * 1e6 / dt_us))):
         world.step(dt_us)
@@ -72,13 +62,13 @@ def test_backends_satisfy_the_hal_protocols_and_the_registry():
         assert backend_class(kind, "sim") is cls
         obj = cls(world) if kind == "clock" else cls(world, 0)
         assert isinstance(obj, protocol)
-    hal = build_sim_hal(world, 0, NullRadio())
+    hal = build_sim_hal(world, 0, NullRadioModem())
     assert isinstance(hal, Hal) and hal.robot_id == 0 and isinstance(hal.radio, RadioModem)
     assert isinstance(hal.lidar, SimLidar) and isinstance(hal.aoa, SimWifiAoa)
     with pytest.raises(TypeError, match="RadioModem"):
         build_sim_hal(world, 0, object())
     with pytest.raises(IndexError, match="robot index 3"):
-        build_sim_hal(world, 3, NullRadio())
+        build_sim_hal(world, 3, NullRadioModem())
 
 
 def test_clock_follows_the_world():
@@ -298,7 +288,7 @@ def test_aoa_bearings_and_outlier_rate():
 def _digest(seed: int) -> tuple[str, list[np.ndarray]]:
     occ = divided_room()
     world = World(occ, [(3.0, 3.0, 0.0), (6.0, 7.0, 2.0), (15.0, 5.0, -1.0)], seed=seed)
-    hals = [build_sim_hal(world, i, NullRadio()) for i in range(3)]
+    hals = [build_sim_hal(world, i, NullRadioModem()) for i in range(3)]
     h = hashlib.sha256()
     noise = []
     for k in range(60):

@@ -12,7 +12,7 @@ import serial
 from hal.lora import PROFILES
 from hal.rn2483 import Rn2483Modem
 from hal.samples import RadioRxFrame, RadioTxDone
-from tests.doubles import ModemServer, in_thread
+from tests.doubles import ModemServer, send_to_a_listening_library
 
 PROFILE = PROFILES["eu868-g3"]
 SETUP = ("mac pause", "radio set mod lora", "radio set freq 869525000", "radio set sf sf7",
@@ -105,14 +105,7 @@ def test_third_party_loranode_library_transmits_and_receives():
             assert [f.payload for f in frames] == [b"LibToOurs"]
 
             # our backend -> library (recv_p2p blocks in `radio rx 0` until a frame comes)
-            t, box = in_thread(lib.recv_p2p)
-            deadline = time.monotonic() + 8
-            while t.is_alive() and time.monotonic() < deadline:
-                if not ours.busy():
-                    ours.transmit(b"OursToLib")
-                ours.poll()
-                time.sleep(0.05)
-            t.join(timeout=1)
+            box = send_to_a_listening_library(ours, lib.recv_p2p, b"OursToLib")
             assert "error" not in box, box.get("error")
             assert box.get("value") == b"OursToLib".hex().upper()
         finally:

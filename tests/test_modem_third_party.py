@@ -16,7 +16,7 @@ from hal import rn2483_protocol as P
 from hal.lora import PROFILES
 from hal.rn2483 import Rn2483Modem
 from hal.samples import RadioRxFrame
-from tests.doubles import ModemServer, deliverable_sigint, in_thread
+from tests.doubles import ModemServer, deliverable_sigint, in_thread, send_to_a_listening_library
 
 PROFILE = PROFILES["eu868-g3"]
 
@@ -116,14 +116,7 @@ def test_loranode_and_our_backend_on_the_network_operating_point():
             assert [f.payload for f in frames] == [b"LibToOurs"]
             assert -32 <= frames[0].snr_db <= 32 and frames[0].rssi_dbm < 0
 
-            t, box = in_thread(lib.recv_p2p)
-            deadline = time.monotonic() + 8
-            while t.is_alive() and time.monotonic() < deadline:
-                if not ours.busy():
-                    ours.transmit(b"OursToLib")
-                ours.poll()
-                time.sleep(0.05)
-            t.join(timeout=1)
+            box = send_to_a_listening_library(ours, lib.recv_p2p, b"OursToLib")
             assert "error" not in box, box.get("error")
             assert box.get("value") == b"OursToLib".hex().upper()
             assert ours.command_errors == []
