@@ -120,10 +120,12 @@ class ExplorerAgent:
         self.scheduler.run_due(self.hal.clock.now_us(), profiler)
 
     def stats(self) -> dict[str, int]:
-        """How this robot's targets ended, its bumps, and the scheme's own counters."""
+        """How this robot's targets ended, the frontiers it stopped short of (0 while it
+        explores), its bumps, and the scheme's own counters."""
         c = self.targets.counts
         return {"targets_reached": c["reached"], "targets_seen_on_way": c["seen_on_way"],
                 "targets_unreachable": c["unreachable"], "targets_stalled": c["stalled"],
+                "unreachable_frontiers": self.planner.frontiers.unreachable,
                 **self.scheme.stats(), "bumps": self.bumps}
 
     def memory_bytes(self) -> dict[str, int]:
@@ -220,8 +222,9 @@ class ExplorerAgent:
             self.follower.clear()
             self.hal.drive.command(0.0, 0.0)
             self.done = True
-            self.status = "complete"
+            # Nothing left that this robot can get to; say so if frontiers it could not reach remain.
+            self.status = "complete_with_unreachable_frontiers" if self.planner.frontiers.unreachable else "complete"
             if self.link is not None:
                 self._send_heartbeat(pose)
             return
-        self.follower.set_path(plan.path_xy)
+        self.follower.set_path(plan.path_xy, plan.clearance_m)

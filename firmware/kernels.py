@@ -172,6 +172,55 @@ def chamfer_distances(state):
     return d_occ, d_blk
 
 
+# Where in a cell the body may stand: its centre, the midpoints of its sides and its corners,
+# in half cells. A door an even number of cells wide has its middle on a cell edge.
+SUBCELL_OFFSETS = np.array([(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)],
+                           np.int8)
+
+
+@njit(cache=True)
+def best_standing_points(occupied, cells_i, cells_j, half_side_cells, reach_cells):
+    """For each listed cell, the point of it (SUBCELL_OFFSETS, first best on ties) farthest
+    from every occupied cell, and that distance in cells. An occupied cell stands for a
+    square of half_side_cells around its centre (0.5: the whole cell). Walls farther than
+    reach_cells are not looked at, so a distance of reach_cells or more reads as reach_cells.
+    Returns (distance_cells float32[n], offset index int8[n])."""
+    rows, cols = occupied.shape
+    n = cells_i.shape[0]
+    best_d = np.empty(n, np.float32)
+    best_k = np.zeros(n, np.int8)
+    r = int(math.ceil(reach_cells))
+    wi = np.empty((2 * r + 1) * (2 * r + 1), np.int64)
+    wj = np.empty((2 * r + 1) * (2 * r + 1), np.int64)
+    for c in range(n):
+        ci = cells_i[c]
+        cj = cells_j[c]
+        m = 0
+        for i in range(max(ci - r, 0), min(ci + r + 1, rows)):
+            for j in range(max(cj - r, 0), min(cj + r + 1, cols)):
+                if occupied[i, j]:
+                    wi[m] = i
+                    wj[m] = j
+                    m += 1
+        top = -1.0
+        for k in range(SUBCELL_OFFSETS.shape[0]):
+            pi = ci + 0.5 * SUBCELL_OFFSETS[k, 0]
+            pj = cj + 0.5 * SUBCELL_OFFSETS[k, 1]
+            d2 = reach_cells * reach_cells
+            for w in range(m):
+                ei = max(abs(wi[w] - pi) - half_side_cells, 0.0)
+                ej = max(abs(wj[w] - pj) - half_side_cells, 0.0)
+                e2 = ei * ei + ej * ej
+                if e2 < d2:
+                    d2 = e2
+            d = math.sqrt(d2)
+            if d > top:
+                top = d
+                best_k[c] = k
+        best_d[c] = top
+    return best_d, best_k
+
+
 @njit(cache=True)
 def _sift_up(keys, vals, pos, i):
     """Move heap entry i up to its place. The heap is ordered by (key, val), so ties between

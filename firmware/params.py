@@ -72,9 +72,19 @@ class ExplorationParams:
                                'deadlock breaker: information a waypoint must hold to be taken back')
     # Robot body and navigation.
     robot_radius_m: float = _p(0.25, 'm', 0.05, 5.0, 'robot body radius')
-    safety_margin_m: float = _p(0.07, 'm', 0.0, 5.0, 'traversable cells keep radius + margin from walls')
-    clearance_cost_m: float = _p(1.0, 'm', 0.0, 50.0, 'below this distance to walls or unknown, paths pay extra')
-    clearance_cost_weight: float = _p(2.0, '1', 0.0, 1000.0, 'weight of that extra cost')
+    # Clearance as a cost (nav2's inflation layer: lethal, inscribed, decaying). The scan
+    # fill marks the cell half a cell beyond each hit, so an occupied cell holds a wall face
+    # between its centre and one cell nearer the robot, half a cell on average. A cell is
+    # lethal only if the body plus lethal_tolerance_m fits at none of its points even with
+    # every face at its cell's centre; inscribed, if it fits only so and not with the faces
+    # where they are expected (LocalMap.layers).
+    lethal_tolerance_m: float = _p(0.02, 'm', 0.0, 0.03, 'the body plus this must fit where a path goes')
+    inscribed_cost: float = _p(10.0, '1', 1.0, 1e6,
+                               "cost factor of a cell the body fits in only if the walls are where they "
+                               "might be, not where they are expected")
+    inflation_radius_m: float = _p(1.0, 'm', 0.0, 50.0, 'paths pay extra closer than this to walls or unknown')
+    inflation_cost_weight: float = _p(2.0, '1', 0.0, 1000.0, 'extra cost factor right at the body, decaying outwards')
+    inflation_decay_per_m: float = _p(3.0, '1/m', 0.0, 100.0, "how fast that extra cost decays with distance")
     waypoint_reached_m: float = _p(0.5, 'm', 0.05, 50.0, 'a target this close is reached')
     # A target whose information the robot saw while this close to it counts as reached
     # (TargetKeeper.end_if_seen_on_way) and is banned: a few wall cells turning unknown again
@@ -83,6 +93,11 @@ class ExplorationParams:
     # instead of 1398 m but covered 0.9893 instead of 0.9912, below issue 2's 0.99.
     target_seen_within_m: float = _p(0.0, 'm', 0.0, 50.0,
                                      'a target whose information was seen from this close counts as reached (0: off)')
+    # The path follower slows down and looks less far ahead where the path leaves less room
+    # than this beside the body, down to min_speed_mps.
+    slow_clearance_m: float = _p(0.25, 'm', 0.0, 10.0,
+                                 'room beside the body below which the robot slows down and steers closely')
+    min_speed_mps: float = _p(0.1, 'm/s', 0.01, 10.0, 'the slowest the robot drives a path')
     lookahead_m: float = _p(0.35, 'm', 0.05, 50.0, "path follower's lookahead")
     rotate_in_place_rad: float = _p(0.8, 'rad', 0.0, 3.1416,
                                     'heading error above which the robot turns on the spot')

@@ -77,7 +77,6 @@ def main(args: argparse.Namespace) -> int:
     bar.close()
     report = result.to_json()
     report["params_overrides"] = dict(overrides)
-    report["coverage_within_planner_clearance"] = _within_clearance(result)
     interrupted = result.termination == "interrupted"
     # The report is printed before the files are written: if writing fails, it is not lost.
     if args.json:
@@ -103,22 +102,6 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _within_clearance(result) -> dict | None:
-    """Coverage of the area a robot keeping the planner's clearance (robot radius plus safety
-    margin) can reach from robot 0's start, next to the body-reachable area the mission
-    scores: rooms behind doors narrower than twice the clearance count only in the latter.
-    None when that start is too close to a wall for the clearance."""
-    from host_tools.map_report import PLANNER_CLEARANCE_M, coverage_within_clearance
-
-    x, y = result.start_poses[0][:2]
-    try:
-        area_m2, coverage = coverage_within_clearance(result.world.occ, result.world.observed_union(), (x, y),
-                                                      PLANNER_CLEARANCE_M)
-    except ValueError:
-        return None
-    return {"clearance_m": PLANNER_CLEARANCE_M, "reachable_area_m2": round(area_m2, 2), "coverage": round(coverage, 6)}
-
-
 def _receptions(fates: dict[str, int], frames_sent: int) -> str:
     """What became of each frame at each robot in range of hearing it: 'received 812,
     collided 3 (0.4 %)'; the losses with their share of all receptions."""
@@ -131,11 +114,13 @@ def _receptions(fates: dict[str, int], frames_sent: int) -> str:
     return ", ".join(parts)
 
 
-def _clearance_note(c: dict | None, reachable_m2: float) -> str:
-    if c is None or c["reachable_area_m2"] >= 0.99 * reachable_m2:
-        return ""           # a few cells' difference along walls says nothing
-    return (f" ({c['coverage'] * 100:.2f} % of the {c['reachable_area_m2']:.0f} m² a robot keeping the planner's "
-            f"{c['clearance_m']} m from walls can reach)")
+def _frontiers_left(r: dict) -> str:
+    """'; 3 frontiers the robots could not reach (0.8 m² of frontier cells)', or ''."""
+    count = sum(r.get("unreachable_frontiers", []))
+    if not count:
+        return ""
+    return (f"; {count} frontier{'s' if count > 1 else ''} the robots could not reach "
+            f"({sum(r['unreachable_frontier_area_m2']):.1f} m² of frontier cells)")
 
 
 def format_summary(r: dict) -> str:
@@ -144,12 +129,12 @@ def format_summary(r: dict) -> str:
     lines = [
         f"map            {r['map']}   (reachable free area {r['reachable_area_m2']:.0f} m²)",
         f"robots         {r['robots']}   seed {r['seed']}   strategy {r['strategy']}   radio {r['radio']}",
-        f"coverage       {r['coverage'] * 100:.2f} % of the reachable free area"
-        + _clearance_note(r.get("coverage_within_planner_clearance"), r["reachable_area_m2"]),
+        f"coverage       {r['coverage'] * 100:.2f} % of the reachable free area",
         f"path length    {paths} m   (longest {max(r['path_length_m']):.1f} m: this trial's p_max)",
         f"T_total        {r['t_total_s']:.1f} s simulated",
-        f"T_90           {t90}",
-        f"ended          {r['termination']}   (robots: {', '.join(r['robot_status'])})",
+        f"T_90           {t90}" + ("" if r["t_90_s"] is None or r["t_90_s"] <= 0 else
+                                      f"   (T_total / T_90 = {r['t_total_s'] / r['t_90_s']:.2f}: the last 10 %'s tail)"),
+        f"ended          {r['termination']}   (robots: {', '.join(r['robot_status'])})" + _frontiers_left(r),
         f"overlap        {r['overlap']:.3f}",
         f"radio          {', '.join(f'{b:.1f}' for b in r['radio_stats']['bytes_per_s_mean'])} B/s per robot (mean), "
         f"airtime {', '.join(f'{a * 100:.2f}' for a in r['radio_stats']['airtime_fraction'])} %, "

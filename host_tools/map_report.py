@@ -22,8 +22,8 @@ from world_sim.ros_map import reachable_free
 
 
 _PLANNER = ExplorationParams()
-# How far the firmware keeps a robot's centre from walls: its radius plus the safety margin.
-PLANNER_CLEARANCE_M = round(_PLANNER.robot_radius_m + _PLANNER.safety_margin_m, 6)
+# How far the firmware keeps a robot's centre from walls: its radius plus the lethal tolerance.
+PLANNER_CLEARANCE_M = round(_PLANNER.robot_radius_m + _PLANNER.lethal_tolerance_m, 6)
 
 
 @dataclass(frozen=True)
@@ -57,16 +57,6 @@ def drivable_centres(occ: OccupancyMap, start_xy: tuple[float, float], clearance
     rows, cols = np.nonzero(labels)
     nearest = int(np.argmin((rows - row) ** 2 + (cols - col) ** 2))
     return labels == labels[rows[nearest], cols[nearest]]
-
-
-def coverage_within_clearance(occ: OccupancyMap, observed: np.ndarray, start_xy: tuple[float, float],
-                              clearance_m: float) -> tuple[float, float]:
-    """(area in m², share of it observed) of the area a body as wide as the planner's
-    clearance can sweep from the start: coverage scored against what the planner lets a
-    robot reach, where the mission's coverage is scored against what its body can reach.
-    Raises ValueError when the start has no room for that body."""
-    reach = reachable_free(occ, start_xy, connectivity=4, robot_radius_m=clearance_m)
-    return float(reach.sum() * occ.resolution_m ** 2), float((observed & reach).sum() / reach.sum())
 
 
 def observable_share(occ: OccupancyMap, start_xy: tuple[float, float], clearance_m: float, *,

@@ -116,6 +116,8 @@ class MissionResult:
             "t_90_s": None if self.t_90_s is None else round(self.t_90_s, 3),
             "termination": self.termination,
             "robot_status": self.robot_status,
+            "unreachable_frontiers": [a.planner.frontiers.unreachable for a in self.agents],
+            "unreachable_frontier_area_m2": [round(a.planner.frontiers.unreachable_area_m2, 2) for a in self.agents],
             "reachable_area_m2": round(self.reachable_area_m2, 2),
             "robots_in_wall": self.robots_in_wall,
             "blocked_moves": self.blocked_moves,
@@ -251,6 +253,15 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 capture.abort()
 
 
+def _termination(agents: list[ExplorerAgent], interrupted: bool) -> str:
+    """"complete" when every robot stopped with nothing left it could reach and no frontier
+    it could not; "complete_with_unreachable_frontiers" when every robot stopped but some
+    knew of frontiers beyond where its body can go; else why the mission was cut short."""
+    if all(a.done for a in agents):
+        return "complete" if all(a.status == "complete" for a in agents) else "complete_with_unreachable_frontiers"
+    return "interrupted" if interrupted else "time_limit"
+
+
 def start_poses(occ, map_start: Pose, starts: tuple[tuple[float, float, float | None], ...],
                 robots: int) -> list[Pose]:
     """Every robot's start pose from a mission's `starts` (see MissionConfig). Raises
@@ -347,7 +358,7 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
         path_length_m=[float(world.path_length_m(i)) for i in range(cfg.robots)],
         t_total_s=world.now_us / 1e6,
         t_90_s=None if t_90_us is None else t_90_us / 1e6,
-        termination="complete" if all(a.done for a in agents) else "interrupted" if interrupted else "time_limit",
+        termination=_termination(agents, interrupted),
         wall_s=wall_s,
         sim_s=world.now_us / 1e6,
         ticks=ticks,

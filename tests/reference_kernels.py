@@ -132,3 +132,24 @@ def mark_visible(state, src_i, src_j, n_rays, max_range_cells, occupied=2):
                     break
                 out[i, j] = True
     return out
+
+
+SUBCELL_OFFSETS = [(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)]
+
+
+def best_standing_points(occupied, cells_i, cells_j, half_side_cells, reach_cells):
+    """Every sub-cell point against every occupied cell's square in the kernel's window."""
+    walls = np.argwhere(occupied)
+    best_d, best_k = [], []
+    for ci, cj in zip(cells_i, cells_j):
+        scores = []
+        for di, dj in SUBCELL_OFFSETS:
+            pi, pj = ci + 0.5 * di, cj + 0.5 * dj
+            near = [math.hypot(max(abs(i - pi) - half_side_cells, 0.0), max(abs(j - pj) - half_side_cells, 0.0))
+                    for i, j in walls if max(abs(i - ci), abs(j - cj)) <= math.ceil(reach_cells)]
+            d = min(near, default=math.inf)
+            scores.append(min(d, reach_cells))
+        k = int(np.argmax(scores))      # the first of the best
+        best_d.append(scores[k])
+        best_k.append(k)
+    return np.array(best_d, np.float32), np.array(best_k, np.int8)

@@ -70,6 +70,29 @@ def test_chamfer_distance_matches_reference(blocked):
     np.testing.assert_allclose(got, expected, rtol=1e-5)
 
 
+@SETTINGS
+@given(grids(), st.data())
+def test_best_standing_points_match_reference(blocked, data):
+    rows, cols = blocked.shape
+    n = data.draw(st.integers(1, 12))
+    ci = np.array(data.draw(st.lists(st.integers(0, rows - 1), min_size=n, max_size=n)), np.int64)
+    cj = np.array(data.draw(st.lists(st.integers(0, cols - 1), min_size=n, max_size=n)), np.int64)
+    face = data.draw(st.sampled_from([0.0, 0.5]))
+    reach = data.draw(st.sampled_from([1.5, 3.3, 5.0]))
+    got_d, got_k = kernels.best_standing_points(blocked.astype(bool), ci, cj, face, reach)
+    want_d, want_k = ref.best_standing_points(blocked.astype(bool), ci, cj, face, reach)
+    np.testing.assert_allclose(got_d, want_d, rtol=1e-5, atol=1e-5)
+    np.testing.assert_array_equal(got_k, want_k)
+
+
+def test_the_best_standing_point_of_a_door_two_cells_wide_is_its_middle():
+    # Walls along columns 0 and 3: the door's middle is the edge between columns 1 and 2.
+    occupied = np.zeros((5, 4), bool)
+    occupied[:, [0, 3]] = True
+    d, k = kernels.best_standing_points(occupied, np.array([2]), np.array([1]), 0.5, 4.0)
+    assert kernels.SUBCELL_OFFSETS[k[0]].tolist() == [0, 1] and d[0] == pytest.approx(1.0)
+
+
 def _search_case(free, data):
     """A shortest-path problem on a drawn grid: (traversable, cell cost factors, start)."""
     rows, cols = free.shape

@@ -46,7 +46,7 @@ def test_trajectory_digest_for_a_fixed_seed_is_pinned():
     assert r.trajectory_sha256 == PINNED_TRAJECTORY_SHA256
 
 
-PINNED_TRAJECTORY_SHA256 = "006cdc9437a762d0760a5b19cf2e7dfe9685199461dcae95a1c14cb253873536"
+PINNED_TRAJECTORY_SHA256 = "4275a4e5686c197e69901455224f468e876352d937cd2f8973b9013020696bad"
 
 
 def test_robots_in_frames_of_their_own_explore_as_well_without_knowing_the_others_frames():
@@ -106,7 +106,8 @@ def test_a_finished_robot_whose_done_is_lost_stops_counting_as_active_within_thr
                                   strategy="minpos"), rates=rates, loss_rule=lose_after_done,
                     observer=lambda now, agents: samples.extend(
                         (now, a.hal.robot_id, a.done, set(a.roster.active(now))) for a in agents))
-    assert r.termination == "complete" and "robot" in silent
+    # Every robot stops by itself (some may know of frontiers their body cannot get to).
+    assert r.termination.startswith("complete") and "robot" in silent
     k = silent["robot"]
     t_done = min(t for t, j, done, _ in samples if j == k and done)
     others = [(t, active) for t, j, done, active in samples if j != k and not done and t > t_done]
@@ -127,18 +128,10 @@ def test_cli_run_json_and_png(tmp_path):
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)
     for key in ("coverage", "path_length_m", "t_total_s", "t_90_s", "termination", "wall_s", "sim_speedup",
-                "seed", "map", "coverage_within_planner_clearance"):
+                "seed", "map"):
         assert key in report
-    assert report["coverage_within_planner_clearance"]["clearance_m"] == 0.32
     assert report["termination"] == "time_limit" and 0 < report["coverage"] <= 1
     assert (tmp_path / "mission.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-
-
-def test_a_start_too_close_to_a_wall_for_the_planners_clearance_has_no_such_coverage():
-    # 0.31 m from the nearest wall: room for the 0.25 m body, not for the planner's 0.32 m.
-    out = _cli("run", "--map", "cave:4:40x40", "--start", "13.75,4.45", "--max-sim-s", "2", "--json", "--quiet")
-    assert out.returncode == 0, out.stderr
-    assert json.loads(out.stdout)["coverage_within_planner_clearance"] is None
 
 
 def test_cli_run_reports_a_bad_map_clearly(tmp_path):
@@ -187,11 +180,6 @@ def test_the_summary_names_the_longest_path_and_what_became_of_the_frames():
     assert "receptions     none (no frame was sent)" in format_summary(report)
     report["radio_stats"]["frames_sent"] = [5, 0]            # one robot alone sends to nobody
     assert "receptions     none (no other robot on the air)" in format_summary(report)
-    report["coverage_within_planner_clearance"] = {"clearance_m": 0.32, "reachable_area_m2": 88.0, "coverage": 0.6}
-    assert "50.00 % of the reachable free area (60.00 % of the 88 m² a robot keeping the planner's 0.32 m" in \
-        format_summary(report)
-    report["coverage_within_planner_clearance"]["reachable_area_m2"] = 99.5
-    assert "reachable free area\n" in format_summary(report)
 
 
 def two_rooms(folder) -> str:
@@ -215,7 +203,7 @@ def test_each_robot_starts_where_it_is_told_and_the_team_covers_every_start_s_pa
     both = r.reachable_area_m2
     alone = run_mission(MissionConfig(map_spec=m, robots=1, seed=1, max_sim_s=1.0, starts=starts[:1]))
     assert alone.start_poses == [(3.0, 3.0, 0.0)]
-    assert both == pytest.approx(2 * alone.reachable_area_m2) and 20 < alone.reachable_area_m2 <= 24
+    assert both == pytest.approx(2 * alone.reachable_area_m2) and 20 < alone.reachable_area_m2 <= 24.01
     # One start for a team is the centre of its staging area, in the map's heading when none is given.
     team = run_mission(MissionConfig(map_spec=m, robots=3, seed=1, max_sim_s=1.0, starts=((12.0, 3.0, None),)))
     assert team.start_poses[0][:2] == (12.0, 3.0) and team.reachable_area_m2 == alone.reachable_area_m2

@@ -113,7 +113,7 @@ def reachable_free(
     8-connected lets a component leak through pixel-diagonal chinks in drawn walls; the
     areas in the shared maps' README are the 4-connected ones. With robot_radius_m, the answer
     is instead the area a robot body of that radius can sweep from the start: the connected
-    set of centre positions where the disc fits, grown back by the disc. Gaps narrower than
+    set of cells where the disc fits (body_fits), grown back by the disc. Gaps narrower than
     the robot cut the component there; in recorded SLAM maps that drops the fans of free beams
     drawn through chinks in walls into closed courtyards, where no robot can go."""
     if connectivity not in (4, 8):
@@ -137,13 +137,51 @@ def reachable_free(
     r = max(1, int(np.ceil(robot_radius_m / occ.resolution_m)))
     yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
     disc = (xx * xx + yy * yy) <= r * r
-    centres = ndimage.binary_erosion(occ.free, structure=disc, border_value=0)
+    centres = body_fits(occ.free, robot_radius_m / occ.resolution_m)
     if not centres[row, col]:
         raise ValueError(
             f"start ({start_xy[0]:.3f}, {start_xy[1]:.3f}) m of map '{occ.name}' has no room "
             f"for a robot of radius {robot_radius_m} m")
     labels, _ = ndimage.label(centres, structure=structure)
     return ndimage.binary_dilation(labels == labels[row, col], structure=disc) & occ.free
+
+
+# Where in a cell a body may stand: its centre, the midpoints of its sides, its corners (in
+# half cells). A door an even number of cells wide has its middle on a cell edge.
+_STANDING_POINTS = [(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)]
+
+
+def body_fits(free: np.ndarray, radius_cells: float) -> np.ndarray:
+    """Bool grid: free cells with a point (centre, side midpoint or corner) where a disc of
+    radius_cells touches no wall cell (walls are whole cells, as the world's collision test
+    takes them; the grid's edge counts as wall). A door of 6 cells passes a body 5 cells wide
+    through its middle, which lies on a cell edge, so testing cell centres alone would close
+    it."""
+    padded = np.pad(free, 1, constant_values=False)
+    # Distances between centres bound the answer: a cell's points lie within sqrt(2)/2 of its
+    # centre, and a wall cell's square within sqrt(2)/2 of the wall's centre.
+    d_centre = ndimage.distance_transform_edt(padded)
+    sure = padded & (d_centre - math.sqrt(2.0) > radius_cells)
+    maybe = padded & ~sure & (d_centre + math.sqrt(2.0) / 2.0 - 0.5 > radius_cells)
+    rows, cols = np.nonzero(maybe)
+    fits = sure.copy()
+    if len(rows):
+        reach = int(math.ceil(radius_cells + 1.5))
+        best = np.zeros(len(rows), bool)
+        for pi, pj in _STANDING_POINTS:
+            nearest = np.full(len(rows), np.inf)
+            for di in range(-reach, reach + 1):
+                for dj in range(-reach, reach + 1):
+                    wi, wj = rows + di, cols + dj
+                    inside = (wi >= 0) & (wi < padded.shape[0]) & (wj >= 0) & (wj < padded.shape[1])
+                    wall = np.ones(len(rows), bool)
+                    wall[inside] = ~padded[wi[inside], wj[inside]]
+                    gap_i = max(abs(di - 0.5 * pi) - 0.5, 0.0)
+                    gap_j = max(abs(dj - 0.5 * pj) - 0.5, 0.0)
+                    nearest = np.where(wall, np.minimum(nearest, math.hypot(gap_i, gap_j)), nearest)
+            best |= nearest > radius_cells
+        fits[rows, cols] = best
+    return fits[1:-1, 1:-1]
 
 
 def reachable_area_m2(

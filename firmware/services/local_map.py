@@ -125,8 +125,36 @@ class MapLayers:
 
     state: np.ndarray          # UNKNOWN / FREE / OCCUPIED per cell
     sight: np.ndarray          # state with unknown cells next to walls closed, for ray casting
-    traversable: np.ndarray    # bool: known free and radius + margin away from obstacles
-    cell_cost: np.ndarray      # >= 1, grows near walls and unknown space
+    traversable: np.ndarray    # bool: known free, and the body fits somewhere in the cell
+    cell_cost: np.ndarray      # >= 1: inscribed cells, and a cost decaying away from walls and unknown
+    clearance_m: np.ndarray    # float32: room from the best point of the cell to the expected wall faces
+    standing: np.ndarray       # int8: index into kernels.SUBCELL_OFFSETS of the cell's best point
+
+    def point_of(self, i: int, j: int) -> tuple[float, float]:
+        """Offset (rows, cols) in cells from cell (i, j)'s centre to its best point."""
+        di, dj = kernels.SUBCELL_OFFSETS[self.standing[i, j]]
+        return 0.5 * float(di), 0.5 * float(dj)
+
+
+# The scan fill marks the cell half a cell beyond a hit, so a wall face lies between an
+# occupied cell's centre and its near edge: a square of this half side (in cells) is where
+# faces are expected; the centre alone is the most room the robot can hope for.
+EXPECTED_FACE_HALF_SIDE_CELLS = 0.5
+# Chamfer distances run long by at most 8.3 % (kernels.chamfer_distance); a cell's points lie
+# within sqrt(2)/2 cells of its centre.
+_CHAMFER_LONG = 1.0824
+_HALF_DIAGONAL = math.sqrt(2.0) / 2.0
+
+
+def inflation(spare_m: np.ndarray, reach_m: float, decay_per_m: float) -> np.ndarray:
+    """nav2's decaying inflation, normalised: 1 where the body touches (spare room 0 or
+    less), falling as exp(-decay * spare) and reaching 0 at reach_m of spare room."""
+    spare = np.clip(spare_m, 0.0, None)
+    if reach_m <= 0.0:
+        return np.zeros(np.shape(spare_m))
+    floor = math.exp(-decay_per_m * reach_m)
+    return np.clip((np.exp(-decay_per_m * spare) - floor) / (1.0 - floor), 0.0, 1.0) if floor < 1.0 else \
+        np.clip(1.0 - spare / reach_m, 0.0, 1.0)
 
 
 def close_wall_gaps(state: np.ndarray) -> np.ndarray:
@@ -270,19 +298,53 @@ class LocalMap:
                 state[i, j] = kernels.OCCUPIED
         traversable = np.zeros(state.shape, bool)
         cell_cost = np.ones(state.shape, np.float64)
-        # Only known cells can be traversable, and distances matter only up to the clearance
-        # cost's reach: work on the known cells' bounding box, padded by that reach (exact,
-        # since unknown cells outside it count as blocked anyway).
+        clearance_m = np.zeros(state.shape, np.float32)
+        standing = np.zeros(state.shape, np.int8)
+        # Only known cells can be traversable, and distances matter only up to the inflation's
+        # reach: work on the known cells' bounding box, padded by that reach (exact, since
+        # unknown cells outside it count as blocked anyway).
         known_rows = np.nonzero((state != kernels.UNKNOWN).any(axis=1))[0]
         if len(known_rows):
             known_cols = np.nonzero((state != kernels.UNKNOWN).any(axis=0))[0]
-            pad = int(np.ceil(max(p.clearance_cost_m, p.robot_radius_m + p.safety_margin_m) / p.resolution_m)) + 1
+            body_m = p.robot_radius_m + p.lethal_tolerance_m
+            pad = int(np.ceil(max(p.inflation_radius_m, body_m) / p.resolution_m)) + 2
             i0, i1 = max(known_rows[0] - pad, 0), min(known_rows[-1] + pad + 1, self.n)
             j0, j1 = max(known_cols[0] - pad, 0), min(known_cols[-1] + pad + 1, self.n)
-            crop = state[i0:i1, j0:j1]
+            box = (slice(i0, i1), slice(j0, j1))
+            crop = state[box]
             d_occ_cells, d_block_cells = kernels.chamfer_distances(crop)
-            keep_out_cells = (p.robot_radius_m + p.safety_margin_m) / p.resolution_m
-            traversable[i0:i1, j0:j1] = (crop == kernels.FREE) & (d_occ_cells >= keep_out_cells)
-            near = np.clip((p.clearance_cost_m - d_block_cells * p.resolution_m) / p.clearance_cost_m, 0.0, 1.0)
-            cell_cost[i0:i1, j0:j1] = 1.0 + p.clearance_cost_weight * near
+            fit = self._body_fit(crop, d_occ_cells, body_m / p.resolution_m)
+            traversable[box], cell_cost[box], clearance_m[box], standing[box] = fit
+            cell_cost[box] *= 1.0 + p.inflation_cost_weight * inflation(
+                d_block_cells * p.resolution_m - body_m, p.inflation_radius_m - body_m, p.inflation_decay_per_m)
+        return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable, cell_cost=cell_cost,
+                         clearance_m=clearance_m, standing=standing)
+
+    def _body_fit(self, crop: np.ndarray, d_occ_cells: np.ndarray, body_cells: float):
+        """(traversable, cost factor, clearance in m, best point) of every cell of crop.
+        Cells far from walls fit the body at their centre; cells near them are settled by
+        kernels.best_standing_points, once with the faces where expected and once with them
+        at the occupied cells' centres (lethal only if the body fits at no point even so)."""
+        res = self.p.resolution_m
+        h = EXPECTED_FACE_HALF_SIDE_CELLS
+        free = crop == kernels.FREE
+        clearance_cells = np.maximum(d_occ_cells - h, 0.0)
+        sure = free & (d_occ_cells >= _CHAMFER_LONG * (body_cells + h * math.sqrt(2.0)) + 1.0)
+        hopeless = d_occ_cells + _HALF_DIAGONAL < body_cells
+        band_i, band_j = np.nonzero(free & ~sure & ~hopeless)
+        traversable = sure.copy()
+        cost = np.ones(crop.shape, np.float64)
+        standing = np.zeros(crop.shape, np.int8)
+        if len(band_i):
+            occupied = crop == kernels.OCCUPIED
+            reach = _CHAMFER_LONG * (body_cells + h * math.sqrt(2.0)) + 2.0
+            expected, k_expected = kernels.best_standing_points(occupied, band_i, band_j, h, reach)
+            hopeful, k_hopeful = kernels.best_standing_points(occupied, band_i, band_j, 0.0, reach)
+            fits = expected >= body_cells
+            might_fit = hopeful >= body_cells
+            traversable[band_i, band_j] = might_fit
+            cost[band_i[might_fit & ~fits], band_j[might_fit & ~fits]] = self.p.inscribed_cost
+            standing[band_i, band_j] = np.where(fits, k_expected, k_hopeful)
+            clearance_cells[band_i, band_j] = np.where(fits, expected, hopeful - h)
+        return traversable, cost, (clearance_cells * res).astype(np.float32), standing
         return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable, cell_cost=cell_cost)

@@ -1,6 +1,7 @@
 """Motion: a waypoint-following controller (pure pursuit on the planned path, turning in
 place when the next point is far off the heading; the paper steers with forward and angular
-velocity), and stall detection."""
+velocity) that slows down and steers closely where the path leaves little room beside the
+body, and stall detection."""
 from __future__ import annotations
 
 import math
@@ -16,6 +17,7 @@ class PathFollower:
         self.max_v_mps = max_v_mps
         self.max_omega_radps = max_omega_radps
         self.path_xy = np.zeros((0, 2))
+        self.room_m = np.zeros(0)                       # room from each path point to the walls
         self._next = 0
         self._closely_for_m = 0.0                       # travel left in follow_closely
         self._last_xy: tuple[float, float] | None = None
@@ -26,9 +28,23 @@ class PathFollower:
         a path's bends can press the body against the very post the path bends around."""
         self._closely_for_m = distance_m
 
-    def set_path(self, path_xy: np.ndarray) -> None:
+    def set_path(self, path_xy: np.ndarray, room_m: np.ndarray | None = None) -> None:
+        """room_m: the room from each point to the walls (the planner's clearance); without
+        it the path counts as roomy."""
         self.path_xy = path_xy
+        self.room_m = np.full(len(path_xy), np.inf) if room_m is None else np.asarray(room_m, np.float64)
         self._next = 0
+
+    def _roominess(self) -> float:
+        """0 where the path ahead (the next metre) leaves no room beside the body, 1 where it
+        leaves slow_clearance_m or more."""
+        if self.p.slow_clearance_m <= 0.0:
+            return 1.0
+        ahead = self.room_m[max(self._next - 1, 0):self._next + int(1.0 / self.p.resolution_m) + 1]
+        if not len(ahead):
+            return 1.0
+        spare_m = float(ahead.min()) - self.p.robot_radius_m
+        return min(max(spare_m / self.p.slow_clearance_m, 0.0), 1.0)
 
     def clear(self) -> None:
         self.set_path(np.zeros((0, 2)))
@@ -47,7 +63,9 @@ class PathFollower:
         if self._last_xy is not None and self._closely_for_m > 0.0:
             self._closely_for_m -= math.hypot(x_m - self._last_xy[0], y_m - self._last_xy[1])
         self._last_xy = (x_m, y_m)
-        lookahead_m = self.p.resolution_m if self._closely_for_m > 0.0 else self.p.lookahead_m
+        roomy = self._roominess()
+        lookahead_m = self.p.resolution_m if self._closely_for_m > 0.0 else \
+            max(self.p.resolution_m, self.p.lookahead_m * roomy)
         # Points already within the look-ahead distance are passed.
         while self._next < len(pts) - 1 and math.hypot(pts[self._next, 0] - x_m, pts[self._next, 1] - y_m) < lookahead_m:
             self._next += 1
@@ -60,9 +78,13 @@ class PathFollower:
             return 0.0, 0.0
         err = (math.atan2(gy - y_m, gx - x_m) - yaw_rad + math.pi) % (2 * math.pi) - math.pi
         omega = max(-self.max_omega_radps, min(self.max_omega_radps, self.p.heading_gain * err))
-        if abs(err) > self.p.rotate_in_place_rad:
+        # In a tight spot the body must face the path before it moves: an arc would sweep
+        # its side into the door post.
+        turn_on_spot_rad = self.p.rotate_in_place_rad * (0.4 + 0.6 * roomy)
+        if abs(err) > turn_on_spot_rad:
             return 0.0, omega
-        v = self.max_v_mps * (1.0 - abs(err) / self.p.rotate_in_place_rad)
+        top_v = self.p.min_speed_mps + (self.max_v_mps - self.p.min_speed_mps) * roomy
+        v = min(self.max_v_mps, top_v) * (1.0 - abs(err) / turn_on_spot_rad)
         # Slow down for the last point so the robot does not overshoot it.
         if self._next == len(pts) - 1:
             v = min(v, max(0.1, dist))
@@ -89,7 +111,7 @@ class StallDetector:
         """Called once per control tick; True once per stall."""
         if self.p.stuck_after_s <= 0:
             return False
-        if self._last_cmd_v > 0.1 and abs(measured_v_mps) < 0.02:
+        if self._last_cmd_v > 0.05 and abs(measured_v_mps) < 0.02:
             self._stuck_ticks += 1
         else:
             self._stuck_ticks = 0

@@ -13,9 +13,10 @@ local map or, beyond it, along the topological graph of visited places.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.ndimage as ndimage
 
 from firmware import kernels
 from firmware.params import ExplorationParams
@@ -32,6 +33,7 @@ class Plan:
     target: Target | None
     path_xy: np.ndarray            # world points to follow, robot first
     done: bool                     # nothing left to explore that this robot can reach
+    clearance_m: np.ndarray = field(default_factory=lambda: np.zeros(0))   # room at each point
 
 
 class Planner:
@@ -46,9 +48,21 @@ class Planner:
         self._search_arrays: tuple | None = None   # GridPaths' arrays, reused plan after plan
         # Edges of the topological map that this robot's own map shows crossing a wall.
         self.blocked_edges: set[tuple[tuple[int, int], tuple[int, int]]] = set()
+        # What was left when the robot had nothing more to explore (the last plan's).
+        self.frontiers = FrontierCount(0, 0.0)
 
-    def _path_xy(self, cells: list[tuple[int, int]]) -> np.ndarray:
-        return np.array([self.map.center_of(i, j) for i, j in cells], np.float64).reshape(-1, 2)
+    def _path(self, cells: list[tuple[int, int]], layers) -> tuple[np.ndarray, np.ndarray]:
+        """World points through the cells, each at the cell's best point (its centre unless a
+        wall is near: in a door an even number of cells wide that is the door's middle, on a
+        cell edge), and the room there."""
+        res = self.p.resolution_m
+        xy = np.empty((len(cells), 2), np.float64)
+        for k, (i, j) in enumerate(cells):
+            di, dj = layers.point_of(i, j)
+            cx, cy = self.map.center_of(i, j)
+            xy[k] = (cx + dj * res, cy + di * res)
+        room = np.array([layers.clearance_m[i, j] for i, j in cells], np.float64)
+        return xy, room
 
     def _in_window(self, i: int, j: int) -> bool:
         return 0 <= i < self.map.n and 0 <= j < self.map.n
@@ -90,20 +104,29 @@ class Planner:
         while candidates:
             settle_choice_costs(candidates, paths, self.targets.target, self.p.resolution_m)
             c = self.targets.choose(candidates)
-            path = self._route(c, paths, topo_src, topo_dist, topo_parent, x_m, y_m)
-            if path is not None:
+            cells = self._route(c, paths, topo_src, topo_dist, topo_parent, x_m, y_m)
+            if cells is not None:
                 ended = self.targets.head_for(c, now_us)
                 self._tell(ended, "stalled")
                 if self.targets.target is None:
                     return Plan(None, np.zeros((0, 2)), False)
-                return Plan(self.targets.target, path, False)
+                xy, room = self._path(cells, layers)
+                return Plan(self.targets.target, xy, False, room)
             target = Target(c.x_m, c.y_m, c.cost_m, c.from_team)
             if self.targets.strike(c, now_us):
                 self._tell(target, "unreachable")
             key = (c.x_m, c.y_m)
             candidates = [k for k in candidates if (k.x_m, k.y_m) != key and not self.waypoints.is_banned(k.x_m, k.y_m)]
         self.targets.target = None
-        return Plan(None, np.zeros((0, 2)), not self.targets.strikes_pending())
+        if self.targets.strikes_pending():
+            return Plan(None, np.zeros((0, 2)), False)
+        last_look = self.waypoints.look_again(self.map, layers.sight, reachable)
+        if last_look is not None:
+            self.scheme.filter_waypoints(view)              # the scheme may still leave it to others
+            if last_look in self.waypoints.items:
+                return Plan(None, np.zeros((0, 2)), False)  # the next cycle heads there
+        self.frontiers = count_frontiers(layers.sight, reachable, p.resolution_m)
+        return Plan(None, np.zeros((0, 2)), True)
 
     def _place_in_window(self, candidates: list[Candidate], paths: GridPaths) -> None:
         """Candidates a grid path in the local map reaches are costed by that path, the
@@ -130,13 +153,13 @@ class Planner:
 
     # --- routes -----------------------------------------------------------------------
     def _route(self, c: Candidate, paths: GridPaths, topo_src, topo_dist, topo_parent,
-               x_m: float, y_m: float) -> np.ndarray | None:
-        """A local path to the target, or to the farthest vertex on the topological route
-        towards it that the local map can reach."""
+               x_m: float, y_m: float) -> list[tuple[int, int]] | None:
+        """The cells of a local path to the target, or to the farthest vertex on the
+        topological route towards it that the local map can reach."""
         reachable = paths.reachable
         wi, wj = self.map.cell_of(c.x_m, c.y_m)
         if self._in_window(wi, wj) and reachable[wi, wj]:
-            return self._path_xy(paths.path(wi, wj))
+            return paths.path(wi, wj)
         if topo_src is None:
             return None
         _, goal_vertex = self.topo.cost_to(topo_dist, c.x_m, c.y_m)
@@ -159,7 +182,45 @@ class Planner:
                 break
         if best is None or math.hypot(xy[best[0], 0] - x_m, xy[best[0], 1] - y_m) < self.p.waypoint_reached_m:
             return None  # the only reachable place on the way is where we stand: no progress
-        return self._path_xy(paths.path(best[1][0], best[1][1]))
+        return paths.path(best[1][0], best[1][1])
+
+
+@dataclass(frozen=True)
+class FrontierCount:
+    """Frontiers (free cells bordering unknown ones, 8-connected groups of at least
+    MIN_FRONTIER_CELLS) that no grid path reaches, and the area of their cells."""
+    unreachable: int
+    unreachable_area_m2: float
+
+
+# A group of fewer frontier cells is narrower than the body (0.5 m at 0.1 m cells): a speck
+# of noise at a wall's foot, or a crack, not a way on.
+MIN_FRONTIER_CELLS = 5
+# How far from where a robot's centre can go it still stands at a frontier: its radius (0.25 m)
+# and a cell, at 0.1 m cells.
+REACH_CELLS = 4
+
+
+def count_frontiers(sight: np.ndarray, reachable: np.ndarray, resolution_m: float) -> FrontierCount:
+    """The frontiers left in the local map that the body cannot get to. They are read from
+    the sight layer (MapLayers.sight), where unknown cells touching a wall count as wall: the
+    unknown sliver at a wall's foot that no beam grazed is no way on. A frontier counts as
+    reached when one of its cells lies within REACH_CELLS of a cell a grid path reaches (the
+    body's edge, where it can look into the unknown)."""
+    free = sight == kernels.FREE
+    unknown = sight == kernels.UNKNOWN
+    next_to_unknown = ndimage.binary_dilation(unknown, structure=np.ones((3, 3), bool))
+    frontier = free & next_to_unknown
+    labels, n = ndimage.label(frontier, structure=np.ones((3, 3), bool))
+    if n == 0:
+        return FrontierCount(0, 0.0)
+    yy, xx = np.mgrid[-REACH_CELLS:REACH_CELLS + 1, -REACH_CELLS:REACH_CELLS + 1]
+    near_reach = ndimage.binary_dilation(reachable, structure=yy * yy + xx * xx <= REACH_CELLS * REACH_CELLS)
+    sizes = np.bincount(labels.ravel(), minlength=n + 1)
+    reached = np.bincount(labels.ravel(), weights=near_reach.ravel(), minlength=n + 1) > 0
+    left = (sizes >= MIN_FRONTIER_CELLS) & ~reached
+    left[0] = False
+    return FrontierCount(int(left.sum()), float(sizes[left].sum()) * resolution_m ** 2)
 
 
 def settle_choice_costs(candidates: list[Candidate], paths: GridPaths, target: Target | None,

@@ -81,7 +81,7 @@ class TargetKeeper:
 
     def _end(self, outcome: str) -> Target:
         t = self.target
-        self.waypoints.ban(t.x_m, t.y_m)
+        self.waypoints.ban(t.x_m, t.y_m, failed=outcome == STALLED)
         self.counts[outcome] += 1
         self.target = None
         return t

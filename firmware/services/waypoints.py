@@ -36,11 +36,19 @@ def unknown_box_counts(state: np.ndarray, half_cells: int, rows: np.ndarray, col
     return sat[i1, j1] - sat[i0, j1] - sat[i1, j0] + sat[i0, j0]
 
 
+# A last look (WaypointSet.look_again) tries every third cell.
+LOOK_AGAIN_SPACING_CELLS = 3
+
+
 class WaypointSet:
     def __init__(self, params: ExplorationParams) -> None:
         self.p = params
         self.items: list[Waypoint] = []
         self.banned: list[tuple[float, float]] = []
+        # Candidate cells (global row, col) a last look took up despite a ban: each at most
+        # once, so last looks end.
+        self._looked_again: set[tuple[int, int]] = set()
+        self._failed: list[tuple[float, float]] = []      # where the robot got no closer
 
     def banned_mask(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """Per point: within ban_radius of a place dropped for good?"""
@@ -53,11 +61,63 @@ class WaypointSet:
     def is_banned(self, x_m: float, y_m: float) -> bool:
         return bool(self.banned_mask(np.array([x_m]), np.array([y_m]))[0])
 
-    def ban(self, x_m: float, y_m: float) -> None:
-        """Drop every waypoint near this point for good."""
+    def ban(self, x_m: float, y_m: float, failed: bool = False) -> None:
+        """Drop every waypoint near this point for good. failed: the robot had a route there
+        but got no closer, so no last look goes near it either. (One without a route may get
+        a last look: look_again offers only cells a grid path reaches now.)"""
         self.banned.append((x_m, y_m))
+        if failed:
+            self._failed.append((x_m, y_m))
         r2 = self.p.ban_radius_m ** 2
         self.items = [w for w in self.items if (w.x_m - x_m) ** 2 + (w.y_m - y_m) ** 2 >= r2]
+
+    def look_again(self, local_map, state: np.ndarray, reachable: np.ndarray) -> Waypoint | None:
+        """A robot about to stop: is there still information it can reach? Bans keep a robot
+        from circling a place (every candidate within ban_radius_m of a waypoint reached or
+        dropped), and in a small room that can hide a frontier the robot never looked into.
+        So the candidate holding the most information (at least e_min) is taken up despite
+        its ban, once per candidate cell and never near a place the robot failed to get to;
+        returned (and added to W), or None."""
+        p = self.p
+        # Finer than the candidate sub-grid: a strip the body can enter may lie between its points.
+        cand, e_bit = self._scored_candidates(state, reachable, LOOK_AGAIN_SPACING_CELLS)
+        keys = [(local_map.row0 + int(i), local_map.col0 + int(j)) for i, j in cand]
+        xs = (local_map.col0 + cand[:, 1] + 0.5) * p.resolution_m
+        ys = (local_map.row0 + cand[:, 0] + 0.5) * p.resolution_m
+        ok = (e_bit >= p.min_cluster_entropy_bit) & np.array([k not in self._looked_again for k in keys], bool)
+        if self._failed:
+            f = np.asarray(self._failed)
+            ok &= ~(((xs[:, None] - f[None, :, 0]) ** 2 + (ys[:, None] - f[None, :, 1]) ** 2)
+                    < p.ban_radius_m ** 2).any(axis=1)
+        if not ok.any():
+            return None
+        order = np.lexsort((cand[:, 1], cand[:, 0], -e_bit))
+        k = int(order[ok[order]][0])
+        self._looked_again.add(keys[k])
+        w = Waypoint(float(xs[k]), float(ys[k]), float(e_bit[k]))
+        self.banned = [b for b in self.banned if (b[0] - w.x_m) ** 2 + (b[1] - w.y_m) ** 2 >= p.ban_radius_m ** 2]
+        self.items.append(w)
+        return w
+
+    def _scored_candidates(self, state: np.ndarray, reachable: np.ndarray,
+                           spacing_cells: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Reachable cells of a sub-grid (candidate_spacing_m unless spacing_cells is given)
+        with enough unknown around, and the information each would observe (bits)."""
+        p = self.p
+        res = p.resolution_m
+        max_range_cells = p.d_cam_m / res
+        step = spacing_cells or max(1, int(round(p.candidate_spacing_m / res)))
+        sub = np.zeros_like(reachable)
+        sub[step // 2::step, step // 2::step] = True
+        cand = np.argwhere(reachable & sub)
+        if len(cand):
+            cells_needed = p.min_cluster_entropy_bit / p.entropy_per_cell_bit
+            cand = cand[unknown_box_counts(state, int(max_range_cells), cand[:, 0], cand[:, 1]) >= cells_needed]
+        if not len(cand):
+            return cand.reshape(0, 2), np.zeros(0)
+        counts = kernels.observable_unknown(state, cand[:, 0].astype(np.int64), cand[:, 1].astype(np.int64),
+                                            p.info_rays, max_range_cells)
+        return cand, counts * p.entropy_per_cell_bit
 
     def update(self, local_map, state: np.ndarray, reachable: np.ndarray) -> None:
         """One planning cycle: re-score members inside the map, find new ones, merge."""
@@ -65,7 +125,6 @@ class WaypointSet:
         res = p.resolution_m
         n = state.shape[0]
         max_range_cells = p.d_cam_m / res
-        cells_needed = p.min_cluster_entropy_bit / p.entropy_per_cell_bit
         margin = 2
         # Re-score remembered waypoints that are back inside the local map.
         inside = []
@@ -81,18 +140,9 @@ class WaypointSet:
                 w.e_bit = float(c) * p.entropy_per_cell_bit
             self.items = [w for w in self.items if w.e_bit >= p.min_cluster_entropy_bit]
         # New candidates: reachable cells on a coarse sub-grid with enough unknown around.
-        step = max(1, int(round(p.candidate_spacing_m / res)))
-        sub = np.zeros_like(reachable)
-        sub[step // 2::step, step // 2::step] = True
-        cand = np.argwhere(reachable & sub)
+        cand, e_bit = self._scored_candidates(state, reachable)
         if len(cand) == 0:
             return
-        cand = cand[unknown_box_counts(state, int(max_range_cells), cand[:, 0], cand[:, 1]) >= cells_needed]
-        if len(cand) == 0:
-            return
-        counts = kernels.observable_unknown(state, cand[:, 0].astype(np.int64), cand[:, 1].astype(np.int64),
-                                            p.info_rays, max_range_cells)
-        e_bit = counts * p.entropy_per_cell_bit
         xs = (local_map.col0 + cand[:, 1] + 0.5) * res
         ys = (local_map.row0 + cand[:, 0] + 0.5) * res
         r2 = p.waypoint_cluster_radius_m ** 2
