@@ -9,7 +9,10 @@ import importlib
 
 BACKENDS: dict[str, dict[str, tuple[str, str]]] = {
     "clock": {"sim": ("hal.sim.clock", "SimClock")},
-    "lidar": {"sim": ("hal.sim.lidar", "SimLidar")},
+    "lidar": {
+        "sim": ("hal.sim.lidar", "SimLidar"),
+        "rplidar": ("hal.rplidar", "RplidarLidar"),
+    },
     "odometry": {
         "sim": ("hal.sim.odometry", "SimOdometry"),
         "odrive-can": ("hal.odrive_can", "OdriveWheelOdometry"),
