@@ -21,7 +21,10 @@ BACKENDS: dict[str, dict[str, tuple[str, str]]] = {
         "sim": ("hal.sim.drive", "SimDriveBase"),
         "odrive-can": ("hal.odrive_can", "OdriveDiffDrive"),
     },
-    "uwb": {"sim": ("hal.sim.uwb", "SimUwbRanger")},
+    "uwb": {
+        "sim": ("hal.sim.uwb", "SimUwbRanger"),
+        "dwm1001": ("hal.dwm1001", "Dwm1001Ranger"),
+    },
     "aoa": {"sim": ("hal.sim.aoa", "SimWifiAoa")},
     "radio": {
         "sim": ("hal.sim.radio", "SimRadioModem"),
