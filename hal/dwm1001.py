@@ -34,6 +34,10 @@ from hal import dwm1001_protocol as P
 from hal.interfaces import Clock
 from hal.samples import UwbRange
 
+# Ranges nobody collected are dropped oldest first beyond this many (as the simulated world
+# keeps its measurement queues bounded).
+MAX_PENDING_RANGES = 1024
+
 class Dwm1001Error(RuntimeError):
     """The module answered wrongly or not at all at start-up."""
 
@@ -77,6 +81,7 @@ class Dwm1001Ranger:
         self.timeouts = 0
         self.errors: list[str] = []                          # requests the module refused while polling
         self.unknown_addresses = 0
+        self.ranges_dropped = 0
         try:
             self._ser = serial.serial_for_url(url_or_path, baudrate=baudrate, bytesize=8, parity="N",
                                               stopbits=1, timeout=None, write_timeout=reply_timeout_s)
@@ -155,6 +160,10 @@ class Dwm1001Ranger:
         fresh = [r for r in (self._range(d, stamp_us) for d in location.distances) if r is not None]
         with self._lock:
             self._ranges.extend(fresh)
+            overflow = len(self._ranges) - MAX_PENDING_RANGES
+            if overflow > 0:
+                del self._ranges[:overflow]
+                self.ranges_dropped += overflow
 
     def _accepted(self, got: tuple[int, P.Response] | None) -> bool:
         if got is None or self._closed:
@@ -228,4 +237,5 @@ class Dwm1001Ranger:
     def counters(self) -> dict[str, int]:
         with self._lock:
             return {"timeouts": self.timeouts, "bytes_skipped": self._reader_state.bytes_skipped,
-                    "malformed": self._reader_state.malformed, "unknown_addresses": self.unknown_addresses}
+                    "malformed": self._reader_state.malformed, "unknown_addresses": self.unknown_addresses,
+                    "ranges_dropped": self.ranges_dropped}

@@ -162,7 +162,7 @@ def test_world_ranges_round_trip_through_the_pty_to_the_millimetre():
     for want, got in zip(ref, ser):
         assert [(s, p) for s, p, _ in got] == [(s, p) for s, p, _ in want]
         assert all(abs(g - w) <= MM for (_, _, g), (_, _, w) in zip(got, want))
-    assert counters == {"timeouts": 0, "bytes_skipped": 0, "malformed": 0, "unknown_addresses": 0}
+    assert counters == {"timeouts": 0, "bytes_skipped": 0, "malformed": 0, "unknown_addresses": 0, "ranges_dropped": 0}
 
 
 def test_a_tag_reports_its_four_nearest_peers_and_an_anchor_all_of_them():
