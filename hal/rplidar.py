@@ -277,17 +277,22 @@ class RplidarLidar:
 
     # -- reader thread --------------------------------------------------------------
     def _on_bytes(self, data: bytes) -> None:
-        # The arrival time is read once per chunk, before taking the lock, so the stamp
-        # does not include waiting for the firmware thread.
+        # The parser (and, free-running, the assembler) belong to this thread alone, so the
+        # work happens outside the lock: a firmware call never waits for a chunk's parsing.
+        # The arrival time is read once per chunk.
         now_us = None if self._lockstep else self._now_us()
+        nodes: list[P.Nodes] = []
+        finished: list[LidarScan] = []
+        for answer in self._parser.feed(data):
+            if not isinstance(answer, P.Nodes):
+                self._answers.put(answer)
+            elif self._lockstep:
+                nodes.append(answer)
+            else:
+                finished += self._assembler.add(answer, now_us)
         with self._lock:
-            for answer in self._parser.feed(data):
-                if not isinstance(answer, P.Nodes):
-                    self._answers.put(answer)
-                elif self._lockstep:
-                    self._pending_nodes.append(answer)
-                else:
-                    self._publish(self._assembler.add(answer, now_us))
+            self._pending_nodes += nodes
+            self._publish(finished)
             self._bytes_received += len(data)
             self._changed.notify_all()
 

@@ -49,7 +49,7 @@ class Dwm1001Emulator:
         self._requests = P.RequestReader()
         self._latest_m: dict[int, float] = {}       # peer robot -> its newest distance
         self.loc_ready = False
-        self.update_rate = (DEFAULT_UPDATE_RATE_100MS, DEFAULT_UPDATE_RATE_100MS)
+        self.update_rate_100ms = (DEFAULT_UPDATE_RATE_100MS, DEFAULT_UPDATE_RATE_100MS)   # moving, stationary
         self.requests_served = 0
         self._port = PtyPort(self._on_input, baudrate, f"dwm1001-emulator {robot_index}")
 
@@ -108,9 +108,9 @@ class Dwm1001Emulator:
         if req.cmd == P.CMD_POS_GET:
             return ok + P.tlv(P.TLV_POS_XYZ, P.Position().encode())
         if req.cmd == P.CMD_UR_GET:
-            return ok + P.tlv(P.TLV_UR, struct.pack("<HH", *self.update_rate))
+            return ok + P.tlv(P.TLV_UR, struct.pack("<HH", *self.update_rate_100ms))
         if req.cmd == P.CMD_UR_SET:
-            self.update_rate = struct.unpack("<HH", req.value)
+            self.update_rate_100ms = struct.unpack("<HH", req.value)
             return ok
         if req.cmd == P.CMD_RESET:
             self._latest_m.clear()
