@@ -9,7 +9,10 @@ import importlib
 
 BACKENDS: dict[str, dict[str, tuple[str, str]]] = {
     "clock": {"sim": ("hal.sim.clock", "SimClock")},
-    "lidar": {"sim": ("hal.sim.lidar", "SimLidar")},
+    "lidar": {
+        "sim": ("hal.sim.lidar", "SimLidar"),
+        "rplidar": ("hal.rplidar", "RplidarLidar"),
+    },
     "odometry": {
         "sim": ("hal.sim.odometry", "SimOdometry"),
         "odrive-can": ("hal.odrive_can", "OdriveWheelOdometry"),
@@ -18,7 +21,10 @@ BACKENDS: dict[str, dict[str, tuple[str, str]]] = {
         "sim": ("hal.sim.drive", "SimDriveBase"),
         "odrive-can": ("hal.odrive_can", "OdriveDiffDrive"),
     },
-    "uwb": {"sim": ("hal.sim.uwb", "SimUwbRanger")},
+    "uwb": {
+        "sim": ("hal.sim.uwb", "SimUwbRanger"),
+        "dwm1001": ("hal.dwm1001", "Dwm1001Ranger"),
+    },
     "aoa": {"sim": ("hal.sim.aoa", "SimWifiAoa")},
     "radio": {
         "sim": ("hal.sim.radio", "SimRadioModem"),

@@ -17,6 +17,10 @@ EXIT_INTERRUPTED = 130      # 128 + SIGINT, as a shell reports a command Ctrl-C 
 OPTIONS = (
     MAP, ROBOTS, SEED, MAX_SIM_S, RADIO, SCHEME, FRAMES,
     Opt("--serial-radio", "flag", "drive every robot's radio through a virtual RN2483 modem on a pseudo-terminal"),
+    Opt("--serial-lidar", "flag", "read every robot's LiDAR through the RPLIDAR driver and an emulated scanner on a "
+        "pseudo-terminal"),
+    Opt("--serial-uwb", "flag", "read every robot's UWB ranges through the DWM1001 driver and an emulated module on a "
+        "pseudo-terminal"),
     Opt("--capture", "out_file", "record every frame on the air (for lorascout inspect)", metavar="FILE"),
     Opt("--start", "pose", "start pose in metres (and degrees; default the map's yaw): once, the centre of the "
         "team's staging area (default: the map's start); once per robot, each robot's own start",
@@ -48,6 +52,7 @@ def main(args: argparse.Namespace) -> int:
     cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
                         max_sim_s=args.max_sim_s, radio=args.radio, starts=tuple(args.start),
                         strategy=args.strategy, frames=args.frames, serial_radio=args.serial_radio,
+                        serial_lidar=args.serial_lidar, serial_uwb=args.serial_uwb,
                         capture_path=None if args.capture is None else str(args.capture))
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
     state = {"last": 0.0, "stop": False}

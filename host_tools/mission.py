@@ -30,6 +30,7 @@ from host_tools.cmd_inspect import sender_stats
 from radio_sim.air_log import AirFrame
 from radio_sim.channel import Channel
 from radio_sim.virtual_modem import open_serial_radios
+from world_sim.devices.lockstep import open_serial_sensors
 from world_sim.map_spec import Pose, resolve_map, staging_poses
 from world_sim.ros_map import reachable_free
 from world_sim.world import World, WorldParams
@@ -54,6 +55,8 @@ class MissionConfig:
     # robot's "own" (origin at its own start, unknown to the others; the host keeps the truth).
     frames: str = "shared"
     serial_radio: bool = False          # every robot's radio through a virtual RN2483 on a pty
+    serial_lidar: bool = False          # every robot's LiDAR through an emulated RPLIDAR on a pty
+    serial_uwb: bool = False            # every robot's UWB through an emulated DWM1001 on a pty
     capture_path: str | None = None     # record every frame on the air (JSON Lines capture)
 
 
@@ -219,23 +222,29 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     clock = SimClock(world)
     for i in range(cfg.robots):
         channel.attach(i, lambda i=i: world.true_pose(i)[:2])
-    bank = None
-    if cfg.serial_radio:
-        bank, radios = open_serial_radios(channel, profile, clock, list(range(cfg.robots)))
-    else:
-        radios = [SimRadioModem(channel, i, clock) for i in range(cfg.robots)]
-    agents = []
-    for i in range(cfg.robots):
-        scheme = build_scheme(cfg.strategy)
-        hal = build_sim_hal(world, i, radio=radios[i], frame=cfg.frames)
-        if "mesh" in scheme.needs_of():
-            hal = dataclasses.replace(hal, mesh=mesh.endpoint(i))
-        agent = ExplorerAgent(hal, params, rates, scheme, profile, team_size=cfg.robots)
-        agent.setup()
-        agents.append(agent)
+    bank = sensors = None
     completed = False
     try:
-        result = _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh,
+        if cfg.serial_radio:
+            bank, radios = open_serial_radios(channel, profile, clock, list(range(cfg.robots)))
+        else:
+            radios = [SimRadioModem(channel, i, clock) for i in range(cfg.robots)]
+        if cfg.serial_lidar or cfg.serial_uwb:
+            sensors, lidars, rangers = open_serial_sensors(world, clock, lidar=cfg.serial_lidar, uwb=cfg.serial_uwb)
+        agents = []
+        for i in range(cfg.robots):
+            scheme = build_scheme(cfg.strategy)
+            hal = build_sim_hal(world, i, radio=radios[i], frame=cfg.frames)
+            if cfg.serial_lidar:
+                hal = dataclasses.replace(hal, lidar=lidars[i])
+            if cfg.serial_uwb:
+                hal = dataclasses.replace(hal, uwb=rangers[i])
+            if "mesh" in scheme.needs_of():
+                hal = dataclasses.replace(hal, mesh=mesh.endpoint(i))
+            agent = ExplorerAgent(hal, params, rates, scheme, profile, team_size=cfg.robots)
+            agent.setup()
+            agents.append(agent)
+        result = _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air_frames, mesh,
                        progress, profiler, rates, should_stop, observer)
         result.coverage_raw = float((world.observed_union() & reachable_raw).sum()) / int(reachable_raw.sum())
         result.start_poses = poses
@@ -244,6 +253,8 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     finally:
         if bank is not None:
             bank.close()                    # closes the radios too
+        if sensors is not None:
+            sensors.close()                 # closes the LiDAR and UWB drivers too
         if capture is not None:
             # A mission that ended (an interrupted one too) puts its capture in place; one that
             # failed leaves the file that was there before.
@@ -291,8 +302,8 @@ def _reachable_from(occ, poses: list[Pose], robot_radius_m: float | None = None)
     return reachable
 
 
-def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, mesh, progress, profiler, rates,
-          should_stop=None, observer=None):
+def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air_frames, mesh, progress, profiler,
+          rates, should_stop=None, observer=None):
     reachable_cells = int(reachable.sum())
 
     tick_us = rates.tick_period_us
@@ -333,6 +344,8 @@ def _loop(cfg, label, occ, world, channel, bank, agents, reachable, air_frames, 
             bank.advance_to(world.now_us)   # the bank moves the channel, the drivers read up to it
         else:
             channel.advance_to(world.now_us)
+        if sensors is not None:
+            sensors.advance_to(world.now_us)   # the emulators send what the world measured, the drivers read it
         ticks += 1
         for i in range(cfg.robots):
             x, y, yaw = world.true_pose(i)
