@@ -1,5 +1,6 @@
 """Generated office floors: determinism, exact narrow doors, a start room only the body's
-clearance gets out of, every room reachable by the body, furniture gaps just wider than it."""
+clearance gets out of, every room reachable by the body, furniture gaps just wider than it,
+and the `office:` map spec."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,7 +10,7 @@ from scipy import ndimage
 from host_tools.map_report import PLANNER_CLEARANCE_M, drivable_centres
 from world_sim import office
 from world_sim.kinematics import ClearanceMap
-from world_sim.map_spec import staging_poses
+from world_sim.map_spec import MapSpecError, check_map_spec, resolve_map, staging_poses
 from world_sim.office import body_centres_in, body_reachable, build_office, generate_office
 from world_sim.world import WorldParams
 
@@ -195,3 +196,31 @@ def test_other_sizes_and_resolutions(width_m, height_m, resolution_m):
 def test_bad_sizes_are_refused(kwargs, match):
     with pytest.raises(ValueError, match=match):
         generate_office(1, **kwargs)
+
+
+def test_office_map_specs():
+    occ, start, label = resolve_map("office:3:30x25")
+    assert label == "office:3:30x25" and (occ.cols, occ.rows) == (300, 250)
+    same, same_start = generate_office(3, width_m=30.0, height_m=25.0)
+    assert np.array_equal(occ.free, same.free) and start == same_start
+    _, _, label = resolve_map(" Office:2 ")
+    assert label == "office:2:40x30"
+
+
+@pytest.mark.parametrize(
+    "spec,expect",
+    [
+        ("office:x", "seed 'x' is not a non-negative integer"),
+        ("office:", "seed '' is not a non-negative integer"),
+        ("office:1:30", "size '30' is not WxH in metres"),
+        ("office:1:10x30", "width 10 m is outside 20..200 m"),
+        ("office:1:40x201", "height 201 m is outside 20..200 m"),
+        ("office:1:2:3:4", "separators"),
+        ("offices:1", "unrecognised map spec"),
+    ],
+)
+def test_bad_office_specs_say_what_is_wrong(spec, expect):
+    with pytest.raises(MapSpecError) as info:
+        check_map_spec(spec)  # parsed only: a refused spec never costs a generation
+    assert expect in str(info.value)
+    assert "office:SEED" in str(info.value) or "outside" in str(info.value)
