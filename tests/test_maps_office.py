@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from host_tools.map_report import PLANNER_CLEARANCE_M, drivable_centres
+from host_tools.map_report import drivable_centres
 from world_sim import office
 from world_sim.kinematics import ClearanceMap
 from world_sim.map_spec import MapSpecError, check_map_spec, resolve_map, staging_poses
@@ -108,14 +108,17 @@ def test_the_start_room_has_one_door_and_it_is_the_narrowest(floors, seed):
     clearance = ClearanceMap.from_map(occ)
     assert clearance.disc_fits(mid_x, mid_y, WorldParams().robot_radius_m)
     assert clearance.clearance_m(mid_x, mid_y) == pytest.approx(0.3)
-    # ...and reaches every corridor from the start; but where the firmware's planner may put
-    # the robot's centre (its rule, as `lorascout map` applies it) stays inside the start room.
+    # ...and reaches every corridor from the start. Where a planner may put the robot's centre
+    # (drivable_centres: at least a clearance from every wall cell's centre, the firmware's rule
+    # as `lorascout map` applies it) leads out of the start room with a clearance just under
+    # half the door, 0.29 m, but not with the body's radius and 7 cm, 0.32 m.
     swept = body_reachable(occ, start[:2])
     assert all(swept[c.index].mean() > 0.95 for c in floor.corridors)
-    drivable = drivable_centres(occ, start[:2], PLANNER_CLEARANCE_M)
     room = np.zeros_like(occ.free)
     room[floor.rooms[floor.start_room].interior.index] = True
-    assert drivable[room].any() and not (drivable & ~room).any()
+    assert (drivable_centres(occ, start[:2], 0.29) & ~room).sum() > 0.5 * occ.free.sum()
+    trapped = drivable_centres(occ, start[:2], office.BODY_RADIUS_M + 0.07)
+    assert trapped[room].any() and not (trapped & ~room).any()
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -172,7 +175,8 @@ def test_a_small_team_lines_up_in_the_start_room(floors):
 
 
 @pytest.mark.parametrize("width_m,height_m,resolution_m", [(20.0, 20.0, 0.1), (55.55, 20.0, 0.25),
-                                                           (40.0, 30.0, 0.05), (40.0, 30.0, 0.2)])
+                                                           (40.0, 30.0, 0.05), (40.0, 30.0, 0.2),
+                                                           (30.0, 20.0, 0.15)])
 def test_other_sizes_and_resolutions(width_m, height_m, resolution_m):
     floor = build_office(3, width_m, height_m, resolution_m)  # checks every room is reachable itself
     occ = floor.occ

@@ -15,9 +15,9 @@ From the outside in:
   the open, some of them at a gap only just wide enough for the body; a piece is kept only if
   the room stays one piece for the body.
 
-"The body gets through" is judged as world_sim.ros_map.reachable_free judges it, but with the
-body's centre allowed between cell centres (body_lattice_factor): on whole 0.1 m cells no
-centre lies in the middle of a 0.6 m door, and reachable_free there calls it shut.
+"The body gets through" is judged with the body's centre allowed between cell centres
+(body_lattice_factor): on whole 0.1 m cells no cell centre lies in the middle of a 0.6 m door,
+and a disc test on cell centres calls it shut.
 
 Every random number comes from world_sim.seeding.stream(seed, "procgen.office"), so a seed
 names one map bit for bit.
@@ -33,14 +33,14 @@ from scipy import ndimage
 from world_sim.map_spec import clearance_field_m, open_heading_rad
 from world_sim.occupancy_map import OccupancyMap
 from world_sim.procgen import _check_size
-from world_sim.ros_map import body_centres, body_disc, reachable_free
+from world_sim.ros_map import reachable_free
 from world_sim.seeding import stream
 
 Pose = tuple[float, float, float]
 
 DEFAULT_SIZE_M = (40.0, 30.0)
 # A building floor, not a city: furnishing checks the body still gets round every piece of
-# furniture, about half a second per 1000 m2 of floor at 0.1 m, so 500 m a side takes minutes.
+# furniture, about a second per 1000 m2 of floor at 0.1 m, so 500 m a side would take minutes.
 MAX_SIDE_M = 200.0
 # The simulated robot's body (world_sim.world.WorldParams.robot_radius_m; a test keeps them equal).
 BODY_RADIUS_M = 0.25
@@ -632,7 +632,7 @@ def _keep_if_passable(free: np.ndarray, room: Room, aprons: list[CellRect], piec
                    piece.box.col0 - interior.col0:piece.box.col1 - interior.col0]
     under[piece.solid] = False
     factor = body_lattice_factor(resolution_m)
-    centres = body_centres(_subcells(window, factor), resolution_m / factor, BODY_RADIUS_M)
+    centres = _body_centres(_subcells(window, factor), resolution_m / factor, BODY_RADIUS_M)
     _, pieces = ndimage.label(centres)
     must_reach = aprons + ([piece.squeeze.gap] if piece.squeeze is not None else [])
     reaches = all(centres[factor * (r.row0 - interior.row0):factor * (r.row1 - interior.row0),
@@ -774,13 +774,14 @@ def body_lattice_factor(resolution_m: float) -> int:
     """Into how many parts each cell's side is cut where the body's centre may stand: the
     fewest that let a body of BODY_RADIUS_M through the narrowest door (2 at 0.1 m cells).
 
-    On whole cells the middle of a door an even number of cells wide is a cell corner, where
-    no centre can stand: reachable_free at 0.1 m needs 0.7 m of free cells for a body of radius
-    0.25 m, though a 0.6 m door leaves it 5 cm either side and the simulated body
+    On whole cells the middle of a door an even number of cells wide is a cell edge, where no
+    cell centre lies: standing on cell centres, a body of radius 0.25 m needs 0.7 m of free
+    cells at 0.1 m, though a 0.6 m door leaves it 5 cm either side and the simulated body
     (world_sim.kinematics) drives through. A finer lattice of centres puts one near the middle."""
     door = _clear_cells(NARROW_DOOR_M, resolution_m)
     for factor in range(1, 9):
-        if door * factor >= body_disc(resolution_m / factor, BODY_RADIUS_M).shape[0]:
+        footprint = _body_footprint(resolution_m / factor, BODY_RADIUS_M)
+        if door * factor >= footprint[footprint.shape[0] // 2].sum():  # its width across a door
             return factor
     raise ValueError(f"no lattice up to 8 parts a cell fits the body through a door at {resolution_m!r} m cells")
 
@@ -811,4 +812,26 @@ def body_centres_in(free: np.ndarray, resolution_m: float, robot_radius_m: float
     """The cells of `free` (outside it wall) where the body's centre may stand somewhere, on
     the lattice of body_lattice_factor(resolution)."""
     factor = body_lattice_factor(resolution_m)
-    return _any_subcell(body_centres(_subcells(free, factor), resolution_m / factor, robot_radius_m), factor)
+    return _any_subcell(_body_centres(_subcells(free, factor), resolution_m / factor, robot_radius_m), factor)
+
+
+def _body_footprint(lattice_m: float, radius_m: float) -> np.ndarray:
+    """The lattice cells counted as under a body centred on the middle one: each cell whose
+    square comes within radius_m of the centre (the world's collision test,
+    world_sim.kinematics.ClearanceMap.disc_fits, where touching counts), and each cell whose
+    centre lies within the radius rounded up to whole cells (reachable_free's disc). The union
+    is stricter than either, so where it lets the body through, so do the world and
+    reachable_free (both check the floor: the world drives it, missions are scored by it)."""
+    r_cells = radius_m / lattice_m
+    n = max(1, int(np.ceil(r_cells)))  # reachable_free's rounding; the exact test never reaches farther
+    offsets = np.arange(-n, n + 1, dtype=np.float64)
+    gap = np.maximum(np.abs(offsets) - 0.5, 0.0)
+    touched = np.hypot(gap[:, None], gap[None, :]) <= r_cells + 1e-9
+    within_rounded = offsets[:, None] ** 2 + offsets[None, :] ** 2 <= n * n
+    return touched | within_rounded
+
+
+def _body_centres(free: np.ndarray, lattice_m: float, radius_m: float) -> np.ndarray:
+    """The cells of a grid of lattice_m cells whose centre the body fits on: none of its
+    _body_footprint is wall (outside the grid is wall)."""
+    return ndimage.binary_erosion(free, structure=_body_footprint(lattice_m, radius_m), border_value=0)

@@ -134,28 +134,16 @@ def reachable_free(
     if robot_radius_m is None:
         labels, _ = ndimage.label(occ.free, structure=structure)
         return labels == labels[row, col]
-    disc = body_disc(occ.resolution_m, robot_radius_m)
-    centres = body_centres(occ.free, occ.resolution_m, robot_radius_m)
+    r = max(1, int(np.ceil(robot_radius_m / occ.resolution_m)))
+    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+    disc = (xx * xx + yy * yy) <= r * r
+    centres = ndimage.binary_erosion(occ.free, structure=disc, border_value=0)
     if not centres[row, col]:
         raise ValueError(
             f"start ({start_xy[0]:.3f}, {start_xy[1]:.3f}) m of map '{occ.name}' has no room "
             f"for a robot of radius {robot_radius_m} m")
     labels, _ = ndimage.label(centres, structure=structure)
     return ndimage.binary_dilation(labels == labels[row, col], structure=disc) & occ.free
-
-
-def body_disc(resolution_m: float, robot_radius_m: float) -> np.ndarray:
-    """The cells a robot body centred on the middle cell is taken to cover: every cell whose
-    centre lies within the radius rounded up to whole cells (at least one cell)."""
-    r = max(1, int(np.ceil(robot_radius_m / resolution_m)))
-    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
-    return (xx * xx + yy * yy) <= r * r
-
-
-def body_centres(free: np.ndarray, resolution_m: float, robot_radius_m: float) -> np.ndarray:
-    """Bool grid of the cells a robot body of that radius may be centred on: its body_disc
-    lies on free cells only (outside the grid counts as wall)."""
-    return ndimage.binary_erosion(free, structure=body_disc(resolution_m, robot_radius_m), border_value=0)
 
 
 def reachable_area_m2(
