@@ -3,6 +3,8 @@
     depot.yaml / /abs/path/intel.yaml     ROS map_server map, start = default_start(map)
     cave:SEED  /  cave:SEED:WxH           generated cave, W x H metres (default 100x100)
     tunnel:SEED / tunnel:SEED:WxH         generated mine tunnels
+    office:SEED / office:SEED:WxH         generated office floor: rooms behind doors 0.6-1.0 m
+                                          clear, furniture (default 40x30, at most 200 m a side)
 
 Also the start-pose helpers every mission needs: a deterministic default start and a set of
 staging poses around it for a team.
@@ -23,11 +25,12 @@ Pose = tuple[float, float, float]  # (x_m, y_m, yaw_rad)
 
 DEFAULT_SIZE_M = (100.0, 100.0)
 MAX_SIDE_M = 2000.0
-_GENERATED_KINDS = ("cave", "tunnel")
+_GENERATED_KINDS = ("cave", "tunnel", "office")
 _EIGHT_CONNECTED = np.ones((3, 3), dtype=bool)
 _SPEC_HELP = (
-    "accepted: a path to a ROS map .yaml, or cave:SEED, tunnel:SEED, "
-    "cave:SEED:WxH, tunnel:SEED:WxH (SEED a non-negative integer, W and H in metres, e.g. cave:3:200x150)"
+    "accepted: a path to a ROS map .yaml, or cave:SEED, tunnel:SEED, office:SEED, "
+    "cave:SEED:WxH, tunnel:SEED:WxH, office:SEED:WxH (SEED a non-negative integer, W and H in metres, "
+    "e.g. cave:3:200x150)"
 )
 _HEADINGS = 16
 _HEADING_LOOK_M = 20.0
@@ -56,7 +59,7 @@ def check_map_spec(spec: str) -> None:
     is loaded (its checks need the image), a generated one only parsed, not generated."""
     text, kind = _spec_kind(spec)
     if kind in _GENERATED_KINDS:
-        _parse_generated(text)
+        _parse_generated(text, kind)
     else:
         from world_sim.ros_map import load_ros_map
 
@@ -64,7 +67,7 @@ def check_map_spec(spec: str) -> None:
 
 
 def _spec_kind(spec: str) -> tuple[str, str]:
-    """(stripped spec, 'cave', 'tunnel' or 'yaml')."""
+    """(stripped spec, one of _GENERATED_KINDS or 'yaml')."""
     if not isinstance(spec, str) or not spec.strip():
         raise MapSpecError(f"empty map spec; {_SPEC_HELP}")
     text = spec.strip()
@@ -76,10 +79,22 @@ def _spec_kind(spec: str) -> tuple[str, str]:
     raise MapSpecError(f"unrecognised map spec {spec!r}; {_SPEC_HELP}")
 
 
-def _parse_generated(text: str) -> tuple[int, float, float]:
-    """(seed, width_m, height_m) of a cave:/tunnel: spec, checked."""
+def _generator(kind: str):
+    """(generate(seed, width_m=, height_m=) -> (map, start), default (width_m, height_m), largest
+    side in metres) of a generated kind. Imported here: the generators import this module."""
+    from world_sim import office, procgen
+
+    if kind == "office":
+        return office.generate_office, office.DEFAULT_SIZE_M, office.MAX_SIDE_M
+    generate = procgen.generate_cave if kind == "cave" else procgen.generate_tunnel
+    return generate, DEFAULT_SIZE_M, MAX_SIDE_M
+
+
+def _parse_generated(text: str, kind: str) -> tuple[int, float, float]:
+    """(seed, width_m, height_m) of a cave:/tunnel:/office: spec, checked."""
     from world_sim import procgen
 
+    _, default_size_m, max_side_m = _generator(kind)
     parts = text.split(":")
     if len(parts) not in (2, 3):
         raise MapSpecError(f"map spec {text!r} has {len(parts) - 1} ':' separators; {_SPEC_HELP}")
@@ -89,7 +104,7 @@ def _parse_generated(text: str) -> tuple[int, float, float]:
     if len(seed_text) > 10 or int(seed_text) > SEED_MAX:
         raise MapSpecError(f"map spec {text!r}: seed {seed_text} is out of range 0..{SEED_MAX}")
     seed = int(seed_text)
-    width_m, height_m = DEFAULT_SIZE_M
+    width_m, height_m = default_size_m
     if len(parts) == 3:
         match = re.fullmatch(r"\s*(\d{1,6}(?:\.\d{1,6})?)\s*[xX]\s*(\d{1,6}(?:\.\d{1,6})?)\s*", parts[2])
         if match is None:
@@ -97,18 +112,16 @@ def _parse_generated(text: str) -> tuple[int, float, float]:
         width_m, height_m = float(match.group(1)), float(match.group(2))
         lo = procgen.MIN_SIDE_M
         for name, value in (("width", width_m), ("height", height_m)):
-            if not lo <= value <= MAX_SIDE_M:
+            if not lo <= value <= max_side_m:
                 raise MapSpecError(
-                    f"map spec {text!r}: {name} {value:g} m is outside {lo:g}..{MAX_SIDE_M:g} m"
+                    f"map spec {text!r}: {name} {value:g} m is outside {lo:g}..{max_side_m:g} m"
                 )
     return seed, width_m, height_m
 
 
 def _resolve_generated(text: str, kind: str) -> tuple[OccupancyMap, Pose, str]:
-    from world_sim import procgen
-
-    seed, width_m, height_m = _parse_generated(text)
-    generate = procgen.generate_cave if kind == "cave" else procgen.generate_tunnel
+    seed, width_m, height_m = _parse_generated(text, kind)
+    generate, _, _ = _generator(kind)
     occ, start = generate(seed, width_m=width_m, height_m=height_m)
     label = f"{kind}:{seed}:{width_m:g}x{height_m:g}"
     return occ, start, label
