@@ -23,7 +23,7 @@ EXIT_INTERRUPTED = 130
 OLD_PARTIAL_NAME = PARTIAL_NAME + ".old"     # where --overwrite moves an earlier grid's trials
 
 OPTIONS = (
-    Opt("--maps", "map", "map specs (PATH.yaml, cave:SEED[:WxH], tunnel:SEED[:WxH])", nargs="+", required=True,
+    Opt("--maps", "map", "map specs (PATH.yaml, cave:SEED[:WxH], tunnel:SEED[:WxH], office:SEED[:WxH])", nargs="+", required=True,
         metavar="MAP"),
     SCHEMES,
     with_default(ROBOTS, 5),

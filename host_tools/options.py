@@ -243,7 +243,7 @@ def _scheme_catalogue() -> str:
     return "; ".join(f"{spec} {doc}" if doc.startswith("=") else f"{spec} ({doc})" for spec, doc in catalogue())
 
 
-MAP = Opt("--map", "map", "PATH.yaml (ROS map_server), cave:SEED[:WxH] or tunnel:SEED[:WxH]", default="cave:1")
+MAP = Opt("--map", "map", "PATH.yaml (ROS map_server), cave:SEED[:WxH], tunnel:SEED[:WxH] or office:SEED[:WxH]", default="cave:1")
 ROBOTS = Opt("--robots", "int", "team size", unit="robots", lo=1, hi=ROBOTS_MAX, default=1)
 SEED = Opt("--seed", "int", "mission seed: same seed, same result", lo=0, hi=SEED_MAX, default=0)
 MAX_SIM_S = Opt("--max-sim-s", "float", "simulated time limit", unit="s", lo=1.0, hi=SIM_S_MAX, default=14400.0,
