@@ -125,7 +125,7 @@ class Planner:
             self.scheme.filter_waypoints(view)              # the scheme may still leave it to others
             if last_look in self.waypoints.items:
                 return Plan(None, np.zeros((0, 2)), False)  # the next cycle heads there
-        self.frontiers = count_frontiers(layers.sight, reachable, p.resolution_m)
+        self.frontiers = count_frontiers(layers.sight, reachable, p)
         return Plan(None, np.zeros((0, 2)), True)
 
     def _place_in_window(self, candidates: list[Candidate], paths: GridPaths) -> None:
@@ -188,7 +188,8 @@ class Planner:
 @dataclass(frozen=True)
 class FrontierCount:
     """Frontiers (free cells bordering unknown ones, 8-connected groups of at least
-    MIN_FRONTIER_CELLS) that no grid path reaches, and the area of their cells."""
+    MIN_FRONTIER_CELLS) that no grid path reaches and that hide at least e_min of unknown,
+    and the area of their cells."""
     unreachable: int
     unreachable_area_m2: float
 
@@ -201,12 +202,15 @@ MIN_FRONTIER_CELLS = 5
 REACH_CELLS = 4
 
 
-def count_frontiers(sight: np.ndarray, reachable: np.ndarray, resolution_m: float) -> FrontierCount:
-    """The frontiers left in the local map that the body cannot get to. They are read from
-    the sight layer (MapLayers.sight), where unknown cells touching a wall count as wall: the
-    unknown sliver at a wall's foot that no beam grazed is no way on. A frontier counts as
-    reached when one of its cells lies within REACH_CELLS of a cell a grid path reaches (the
-    body's edge, where it can look into the unknown)."""
+def count_frontiers(sight: np.ndarray, reachable: np.ndarray, params: ExplorationParams) -> FrontierCount:
+    """The frontiers left in the local map that the body cannot get to and that hide
+    something: at least e_min (min_cluster_entropy_bit) of unknown in view from the
+    frontier's middle, so a pocket too small to matter is not reported, a room behind a
+    door too narrow for the body is. They are read from the sight layer (MapLayers.sight),
+    where unknown cells touching a wall count as wall: the unknown sliver at a wall's foot
+    that no beam grazed is no way on. A frontier counts as reached when one of its cells
+    lies within REACH_CELLS of a cell a grid path reaches (the body's edge, where it can look
+    into the unknown)."""
     free = sight == kernels.FREE
     unknown = sight == kernels.UNKNOWN
     next_to_unknown = ndimage.binary_dilation(unknown, structure=np.ones((3, 3), bool))
@@ -218,9 +222,23 @@ def count_frontiers(sight: np.ndarray, reachable: np.ndarray, resolution_m: floa
     near_reach = ndimage.binary_dilation(reachable, structure=yy * yy + xx * xx <= REACH_CELLS * REACH_CELLS)
     sizes = np.bincount(labels.ravel(), minlength=n + 1)
     reached = np.bincount(labels.ravel(), weights=near_reach.ravel(), minlength=n + 1) > 0
-    left = (sizes >= MIN_FRONTIER_CELLS) & ~reached
-    left[0] = False
-    return FrontierCount(int(left.sum()), float(sizes[left].sum()) * resolution_m ** 2)
+    left = np.nonzero((sizes >= MIN_FRONTIER_CELLS) & ~reached)[0]
+    left = left[left > 0]
+    if not len(left):
+        return FrontierCount(0, 0.0)
+    middles = np.array([_middle_cell(labels, k) for k in left], np.int64).reshape(-1, 2)
+    unseen_cells = kernels.observable_unknown(sight, middles[:, 0], middles[:, 1], params.info_rays,
+                                              params.d_cam_m / params.resolution_m)
+    hiding = left[unseen_cells * params.entropy_per_cell_bit >= params.min_cluster_entropy_bit]
+    return FrontierCount(int(len(hiding)), float(sizes[hiding].sum()) * params.resolution_m ** 2)
+
+
+def _middle_cell(labels: np.ndarray, k: int) -> tuple[int, int]:
+    """The cell of group k nearest the group's centroid (lowest index on ties)."""
+    cells = np.argwhere(labels == k)
+    d2 = ((cells - cells.mean(axis=0)) ** 2).sum(axis=1)
+    i, j = cells[int(np.argmin(d2))]
+    return int(i), int(j)
 
 
 def settle_choice_costs(candidates: list[Candidate], paths: GridPaths, target: Target | None,
