@@ -11,7 +11,8 @@ tick runs the tasks that are due:
     heartbeat 0.1 Hz  queue this robot's heartbeat (pose, exploring or done), if it talks
     (the scheme's own tasks, if any)
     lidar    10 Hz  fold the newest scan into the local map (and move the window)
-    control  20 Hz  tell the scheme of travel, follow the path, react to stalls
+    control  20 Hz  tell the scheme of travel, follow the path (or drive a recovery), react
+                    to stalls
     planning  1 Hz  one planning cycle (services.planner), or finish
 """
 from __future__ import annotations
@@ -26,6 +27,7 @@ from firmware.schemes.base import NEEDS, PRIORITY_STATUS, Scheme, Services
 from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.services.motion import PathFollower, StallDetector
 from firmware.services.planner import Planner
+from firmware.services.recovery import Recovery, clear_behind
 from firmware.services.pose import SHARED_FRAME, PoseService
 from firmware.services.roster import Roster
 from firmware.services.targets import TargetKeeper
@@ -111,6 +113,7 @@ class ExplorerAgent:
         self.planner = Planner(self.p, self.local_map, self.topo, self.waypoints, self.targets, self.scheme)
         self.follower = PathFollower(self.p, limits.max_v_mps, limits.max_omega_radps)
         self.stall = StallDetector(self.p, self.rates.control_hz)
+        self.recovery = Recovery(self.p, limits.max_v_mps, limits.max_omega_radps)
         self.status = "exploring"
 
     def tick(self, profiler: TaskProfiler | None = None) -> None:
@@ -126,7 +129,7 @@ class ExplorerAgent:
         return {"targets_reached": c["reached"], "targets_seen_on_way": c["seen_on_way"],
                 "targets_unreachable": c["unreachable"], "targets_stalled": c["stalled"],
                 "unreachable_frontiers": self.planner.frontiers.unreachable,
-                **self.scheme.stats(), "bumps": self.bumps}
+                **self.recovery.counts, **self.scheme.stats(), "bumps": self.bumps}
 
     def memory_bytes(self) -> dict[str, int]:
         return {"local_map_bytes": int(self.local_map.logodds.nbytes),
@@ -181,6 +184,16 @@ class ExplorerAgent:
             return
         pose = self.pose.read()
         self.scheme.on_travel(pose, now_us)
+        if self.recovery.active:
+            cmd = self.recovery.command(pose.x_m, pose.y_m, pose.yaw_rad, now_us)
+            if cmd is not None:
+                self.hal.drive.command(*cmd)
+                return
+            # Recovered: retry on tight, slow paths, starting now.
+            self.planner.tight_until_us = now_us + int(self.p.recovery_retry_s * 1e6)
+            self._task_planning(now_us)
+            if self.done:
+                return
         if not self.follower.active and now_us - self._last_plan_us >= self.MIN_REPLAN_US:
             # The path ran out before the next planning slot: plan now instead of idling.
             self._task_planning(now_us)
@@ -212,7 +225,7 @@ class ExplorerAgent:
             self.follower.follow_closely(self.p.follow_closely_after_stall_m)
 
     def _task_planning(self, now_us: int) -> None:
-        if self._last_scan is None or self.done:
+        if self._last_scan is None or self.done or self.recovery.active:
             return
         pose = self.pose.read()
         self._last_plan_us = now_us
@@ -227,4 +240,16 @@ class ExplorerAgent:
             if self.link is not None:
                 self._send_heartbeat(pose)
             return
-        self.follower.set_path(plan.path_xy, plan.clearance_m)
+        if plan.recover:
+            self._start_recovery(pose)
+            return
+        self.follower.set_path(plan.path_xy, plan.clearance_m, slow=plan.slow)
+
+    def _start_recovery(self, pose) -> None:
+        """A target failed for the first time: back off if the last scan shows room behind,
+        turn once on the spot, then plan again (services.recovery)."""
+        self.targets.recovery_started()
+        self.follower.clear()
+        half_width_m = self.p.robot_radius_m + self.p.lethal_tolerance_m
+        room = clear_behind(self._binned_last_scan(), pose.yaw_rad, self.p.recovery_back_off_m, half_width_m)
+        self.recovery.start(room)

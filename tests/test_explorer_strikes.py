@@ -47,8 +47,12 @@ def test_fast_replans_strike_an_unreachable_target_once_per_planning_period():
     plan = ex.plan(*ROBOT_XY, SECOND_US)
     assert _in_w(ex) and not plan.done and _strike_counts(ex) == {TARGET_XY: 2}
     plan = ex.plan(*ROBOT_XY, 2 * SECOND_US)
+    # The third strike asks for a recovery first (back off, turn, retry); the target stays.
+    assert plan.recover and not plan.done and _in_w(ex) and ex.stat("targets_unreachable") == 0
+    ex.targets.recovery_started()
+    plan = ex.plan(*ROBOT_XY, 3 * SECOND_US)
     assert not _in_w(ex) and ex.stat("targets_unreachable") == 1
-    assert plan.done, "a target unreachable for three planning periods is dropped for good"
+    assert plan.done, "a target unreachable for three planning periods and after a recovery is dropped for good"
 
 
 # --- where a robot off the traversable cells plans from -------------------------------------

@@ -3,7 +3,12 @@ import math
 
 import pytest
 
+import numpy as np
+
+from firmware.params import ExplorationParams
+from firmware.services.local_map import BinnedScan
 from firmware.services.pose import PoseService, TravelMilestones
+from firmware.services.recovery import Recovery, clear_behind
 from firmware.services.roster import Roster
 from hal.samples import SHARED_FRAME, OdometrySample
 
@@ -61,3 +66,56 @@ def test_the_roster_ages_silent_teammates_out_and_a_done_stays_done():
     roster.heard_at(2, 6.0, 0.0, 37_000_000)             # a late record of its travel: still done
     assert not roster.any_active(37_000_000)
     assert roster.members()[2].done and set(roster.members()) == {1, 2}
+
+
+# --- recovery ---------------------------------------------------------------------------
+
+def _drive(recovery: Recovery, pose, dt_s: float = 0.05, limit_s: float = 60.0):
+    """Integrate the recovery's commands on a free body; (commands, final pose, time)."""
+    x, y, yaw = pose
+    t_us, commands = 0, []
+    while t_us < limit_s * 1e6:
+        cmd = recovery.command(x, y, yaw, t_us)
+        if cmd is None:
+            return commands, (x, y, yaw), t_us
+        commands.append(cmd)
+        v, w = cmd
+        x, y, yaw = x + v * dt_s * math.cos(yaw), y + v * dt_s * math.sin(yaw), yaw + w * dt_s
+        t_us += int(dt_s * 1e6)
+    raise AssertionError("the recovery never ended")
+
+
+def test_a_recovery_backs_off_its_distance_then_turns_once_around():
+    p = ExplorationParams()
+    r = Recovery(p, max_v_mps=0.5, max_omega_radps=1.0)
+    r.start(room_behind=True)
+    commands, (x, y, yaw), _ = _drive(r, (1.0, 2.0, 0.0))
+    assert x == pytest.approx(1.0 - p.recovery_back_off_m, abs=p.min_speed_mps * 0.05 + 1e-9) and y == 2.0
+    assert all(v <= 0 for v, _ in commands) and yaw == pytest.approx(2 * math.pi, abs=p.recovery_turn_radps * 0.05)
+    assert r.counts == {"recoveries": 1, "recovery_back_offs": 1, "recovery_rotates": 1} and not r.active
+
+
+def test_a_recovery_without_room_behind_only_turns_and_a_body_that_cannot_move_ends_at_the_deadlines():
+    p = ExplorationParams()
+    r = Recovery(p, max_v_mps=0.5, max_omega_radps=1.0)
+    r.start(room_behind=False)
+    commands, _, _ = _drive(r, (0.0, 0.0, 0.0))
+    assert all(v == 0.0 and w > 0 for v, w in commands) and r.counts["recovery_back_offs"] == 0
+    r.start(room_behind=True)
+    t_us, ended = 0, None
+    while ended is None:                      # the pose never changes: stuck wheels
+        ended = t_us if r.command(0.0, 0.0, 0.0, t_us) is None else None
+        t_us += 50_000
+    back_s, turn_s = p.recovery_back_off_m / p.min_speed_mps, 2 * math.pi / p.recovery_turn_radps
+    assert ended / 1e6 == pytest.approx(2 * back_s + 1 + 2 * turn_s + 1, abs=0.1)
+
+
+def test_room_behind_is_read_from_the_scan_strip_the_body_would_sweep():
+    ranges = np.full(360, 5.0)
+    scan = BinnedScan(0.0, 0.0, 0.0, ranges, 10.0)          # bin k looks at k degrees
+    assert clear_behind(scan, 0.0, 0.3, 0.27)
+    ranges[180] = 0.4                                        # something right behind
+    assert not clear_behind(BinnedScan(0.0, 0.0, 0.0, ranges, 10.0), 0.0, 0.3, 0.27)
+    assert clear_behind(BinnedScan(0.0, 0.0, 0.0, ranges, 10.0), math.pi, 0.3, 0.27)   # ahead when facing back
+    ranges[180], ranges[90] = 5.0, 0.4                       # a wall beside the body, not behind it
+    assert clear_behind(BinnedScan(0.0, 0.0, 0.0, ranges, 10.0), 0.0, 0.3, 0.27)

@@ -289,7 +289,8 @@ class LocalMap:
         return True
 
     # --- derived layers -------------------------------------------------------------
-    def layers(self) -> MapLayers:
+    def layers(self, tight: bool = False) -> MapLayers:
+        """tight: a retry after a recovery, with no lethal tolerance and no inscribed cost."""
         p = self.p
         state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
         for bx, by in self.bumps:
@@ -306,21 +307,21 @@ class LocalMap:
         known_rows = np.nonzero((state != kernels.UNKNOWN).any(axis=1))[0]
         if len(known_rows):
             known_cols = np.nonzero((state != kernels.UNKNOWN).any(axis=0))[0]
-            body_m = p.robot_radius_m + p.lethal_tolerance_m
+            body_m = p.robot_radius_m + (0.0 if tight else p.lethal_tolerance_m)
             pad = int(np.ceil(max(p.inflation_radius_m, body_m) / p.resolution_m)) + 2
             i0, i1 = max(known_rows[0] - pad, 0), min(known_rows[-1] + pad + 1, self.n)
             j0, j1 = max(known_cols[0] - pad, 0), min(known_cols[-1] + pad + 1, self.n)
             box = (slice(i0, i1), slice(j0, j1))
             crop = state[box]
             d_occ_cells, d_block_cells = kernels.chamfer_distances(crop)
-            fit = self._body_fit(crop, d_occ_cells, body_m / p.resolution_m)
+            fit = self._body_fit(crop, d_occ_cells, body_m / p.resolution_m, 1.0 if tight else p.inscribed_cost)
             traversable[box], cell_cost[box], clearance_m[box], standing[box] = fit
             cell_cost[box] *= 1.0 + p.inflation_cost_weight * inflation(
                 d_block_cells * p.resolution_m - body_m, p.inflation_radius_m - body_m, p.inflation_decay_per_m)
         return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable, cell_cost=cell_cost,
                          clearance_m=clearance_m, standing=standing)
 
-    def _body_fit(self, crop: np.ndarray, d_occ_cells: np.ndarray, body_cells: float):
+    def _body_fit(self, crop: np.ndarray, d_occ_cells: np.ndarray, body_cells: float, inscribed_cost: float):
         """(traversable, cost factor, clearance in m, best point) of every cell of crop.
         Cells far from walls fit the body at their centre; cells near them are settled by
         kernels.best_standing_points, once with the faces where expected and once with them
@@ -343,7 +344,7 @@ class LocalMap:
             fits = expected >= body_cells
             might_fit = hopeful >= body_cells
             traversable[band_i, band_j] = might_fit
-            cost[band_i[might_fit & ~fits], band_j[might_fit & ~fits]] = self.p.inscribed_cost
+            cost[band_i[might_fit & ~fits], band_j[might_fit & ~fits]] = inscribed_cost
             standing[band_i, band_j] = np.where(fits, k_expected, k_hopeful)
             clearance_cells[band_i, band_j] = np.where(fits, expected, hopeful - h)
         return traversable, cost, (clearance_cells * res).astype(np.float32), standing

@@ -34,6 +34,8 @@ class Plan:
     path_xy: np.ndarray            # world points to follow, robot first
     done: bool                     # nothing left to explore that this robot can reach
     clearance_m: np.ndarray = field(default_factory=lambda: np.zeros(0))   # room at each point
+    recover: bool = False          # a target failed for the first time: recover, then retry it
+    slow: bool = False             # a retry after a recovery: drive the path slowly
 
 
 class Planner:
@@ -50,6 +52,9 @@ class Planner:
         self.blocked_edges: set[tuple[tuple[int, int], tuple[int, int]]] = set()
         # What was left when the robot had nothing more to explore (the last plan's).
         self.frontiers = FrontierCount(0, 0.0)
+        # Until then plans are tight (no lethal tolerance, no inscribed cost) and slow: the
+        # retry after a recovery (the agent sets it when one ends).
+        self.tight_until_us = -1
 
     def _path(self, cells: list[tuple[int, int]], layers) -> tuple[np.ndarray, np.ndarray]:
         """World points through the cells, each at the cell's best point (its centre unless a
@@ -70,7 +75,8 @@ class Planner:
     def plan(self, x_m: float, y_m: float, now_us: int) -> Plan:
         p = self.p
         res = p.resolution_m
-        layers = self.map.layers()
+        tight = now_us < self.tight_until_us
+        layers = self.map.layers(tight=tight)
         ri, rj = self.map.cell_of(x_m, y_m)
         start = (ri, rj) if layers.traversable[ri, rj] else \
             escape_start(layers.traversable, ri, rj, int(math.ceil(p.escape_radius_m / res)))
@@ -108,16 +114,20 @@ class Planner:
             if cells is not None:
                 ended = self.targets.head_for(c, now_us)
                 self._tell(ended, "stalled")
+                if self.targets.recovery_wanted:
+                    return Plan(self.targets.target, np.zeros((0, 2)), False, recover=True)
                 if self.targets.target is None:
                     return Plan(None, np.zeros((0, 2)), False)
                 xy, room = self._path(cells, layers)
-                return Plan(self.targets.target, xy, False, room)
+                return Plan(self.targets.target, xy, False, room, slow=tight)
             target = Target(c.x_m, c.y_m, c.cost_m, c.from_team)
             if self.targets.strike(c, now_us):
                 self._tell(target, "unreachable")
             key = (c.x_m, c.y_m)
             candidates = [k for k in candidates if (k.x_m, k.y_m) != key and not self.waypoints.is_banned(k.x_m, k.y_m)]
         self.targets.target = None
+        if self.targets.recovery_wanted:
+            return Plan(None, np.zeros((0, 2)), False, recover=True)
         if self.targets.strikes_pending():
             return Plan(None, np.zeros((0, 2)), False)
         last_look = self.waypoints.look_again(self.map, layers.sight, reachable)

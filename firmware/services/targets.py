@@ -56,6 +56,28 @@ class TargetKeeper:
         # Per target without a route: (strikes, when the last one counted).
         self._strikes: dict[tuple[float, float], tuple[int, int]] = {}
         self.counts: dict[str, int] = dict.fromkeys(OUTCOMES, 0)
+        # Recovery (services.recovery) before a target is given up: targets waiting for one,
+        # and those that had theirs (given up for good the next time they fail).
+        self._wanting_recovery: set[tuple[float, float]] = set()
+        self._recovered: set[tuple[float, float]] = set()
+
+    # --- recovery ---------------------------------------------------------------------
+    @property
+    def recovery_wanted(self) -> bool:
+        """A target failed for the first time: recover (and retry) before giving it up."""
+        return bool(self._wanting_recovery)
+
+    def recovery_started(self) -> None:
+        """The targets waiting for a recovery have it now: the next failure gives them up."""
+        self._recovered |= self._wanting_recovery
+        self._wanting_recovery = set()
+
+    def _first_failure(self, key: tuple[float, float]) -> bool:
+        """Is this the target's first failure (so a recovery comes before giving it up)?"""
+        if key in self._recovered:
+            return False
+        self._wanting_recovery.add(key)
+        return True
 
     # --- outcomes found at the start of a planning cycle ------------------------------
     def end_if_seen_on_way(self, x_m: float, y_m: float) -> Target | None:
@@ -91,6 +113,7 @@ class TargetKeeper:
         """Strikes only count for targets that are still targets."""
         keys = {(c.x_m, c.y_m) for c in candidates}
         self._strikes = {k: v for k, v in self._strikes.items() if k in keys}
+        self._wanting_recovery &= keys
 
     def choose(self, candidates: list[Candidate]) -> Candidate:
         """Lowest rank, then the closest. The current target is kept unless another is
@@ -129,7 +152,12 @@ class TargetKeeper:
             self._progress_stamp_us = now_us
         if now_us - self._progress_stamp_us > self.p.stall_timeout_s * 1e6 \
                 or self._time_on_us.get(key, 0) > self._budget_us[key]:
-            # Paths keep promising but the robot gets no closer: give up on this target.
+            # Paths keep promising but the robot gets no closer: recover and retry once, then
+            # give up on this target.
+            if self._first_failure(key):
+                self._progress_stamp_us = now_us
+                self._budget_us[key] = self._time_on_us.get(key, 0) + int(self.p.stall_timeout_s * 1e6)
+                return None
             return self._end(STALLED)
         return None
 
@@ -138,14 +166,20 @@ class TargetKeeper:
         cause that for a moment, so it takes several cycles in a row to drop it for good,
         and cycles count at most once per unreachable_strike_interval_s: a robot without a
         route replans every 0.2 s, and three strikes took 0.35 s, too short for the map to
-        change (Intel lab, one robot, seed 3: every target dropped at once). True when c is
-        dropped for good (banned, outcome UNREACHABLE counted)."""
+        change (Intel lab, one robot, seed 3: every target dropped at once). The first time
+        the strikes run out, a recovery comes first (recovery_wanted) and one more strike
+        after it drops c. True when c is dropped for good (banned, outcome UNREACHABLE
+        counted)."""
         key = (c.x_m, c.y_m)
         count, last_us = self._strikes.get(key, (0, None))
         if last_us is None or now_us - last_us >= self.p.unreachable_strike_interval_s * 1e6:
             count, last_us = count + 1, now_us
             self._strikes[key] = (count, last_us)
         self.target = None
+        if count >= self.p.unreachable_strikes and self._first_failure(key):
+            # One more strike after the recovery drops it.
+            self._strikes[key] = (self.p.unreachable_strikes - 1, last_us)
+            return False
         if count >= self.p.unreachable_strikes:
             self.waypoints.ban(c.x_m, c.y_m)
             self.counts[UNREACHABLE] += 1
@@ -157,6 +191,7 @@ class TargetKeeper:
         return {key: count for key, (count, _) in self._strikes.items()}
 
     def strikes_pending(self) -> bool:
-        """Targets merely unreachable right now (still collecting strikes) keep the robot
-        planning: it is done only when no target is left at all."""
-        return any(count < self.p.unreachable_strikes for count, _ in self._strikes.values())
+        """Targets merely unreachable right now (still collecting strikes, or waiting for
+        their recovery) keep the robot planning: it is done only when no target is left."""
+        return any(count < self.p.unreachable_strikes for count, _ in self._strikes.values()) \
+            or self.recovery_wanted
