@@ -67,6 +67,17 @@ def test_a_waypoint_in_a_teammates_plain_view_is_dropped():
     assert ex.stat("waypoints_dropped_by_presence") == 1
 
 
+@pytest.mark.parametrize("e_inf_code", [0, 40])
+def test_a_last_look_is_left_to_a_teammate_only_if_it_reported_nothing_left_there(e_inf_code):
+    """Before a robot stops (seen_only), a teammate's place counts only if its e_inf says it
+    saw what was around it; one still promising information saw it only in our guess."""
+    ex = _explorer()
+    _report(ex, OTHER, 33.0, 20.0, e_inf_code)
+    ex.waypoints.items = [Waypoint(30.0, 20.0, 1000.0)]
+    ex.scheme.presence.drop_waypoints_seen_by_others(ex.local_map.layers().sight, None, seen_only=True)
+    assert (ex.waypoints.items == []) == (e_inf_code == 0)
+
+
 def test_a_teammate_still_busy_nearby_cancels_what_it_saw_too():
     """The teammate still holds information at that place (e_inf > 0): what it saw from
     there is seen all the same; what it has left is its own waypoint, shared as W_inf."""

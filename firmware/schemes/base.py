@@ -84,6 +84,10 @@ class PlanningView:
     target: Target | None                   # the robot's current target, if any
     blocked_edges: frozenset                # topological edges this robot found crossing walls
     graph_costs: Callable[[list[Candidate]], np.ndarray]   # metres along the topological graph
+    # The robot has nothing left of its own and takes a last look (WaypointSet.look_again):
+    # a scheme may leave that place to a teammate only if the teammate reported having seen
+    # it, not because it passed nearby.
+    closing: bool = False
 
 
 class Scheme(ABC):

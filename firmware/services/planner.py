@@ -12,6 +12,7 @@ local map or, beyond it, along the topological graph of visited places.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -132,7 +133,8 @@ class Planner:
             return Plan(None, np.zeros((0, 2)), False)
         last_look = self.waypoints.look_again(self.map, layers.sight, reachable)
         if last_look is not None:
-            self.scheme.filter_waypoints(view)              # the scheme may still leave it to others
+            # The scheme may still leave it to a teammate that reported having seen it.
+            self.scheme.filter_waypoints(dataclasses.replace(view, closing=True))
             if last_look in self.waypoints.items:
                 return Plan(None, np.zeros((0, 2)), False)  # the next cycle heads there
         self.frontiers = count_frontiers(layers.sight, reachable, p)

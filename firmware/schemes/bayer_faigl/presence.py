@@ -24,7 +24,8 @@ class PresenceRule:
         """What the rule dropped and the breaker may still take back (a copy)."""
         return list(self._given_up)
 
-    def drop_waypoints_seen_by_others(self, sight: np.ndarray, target: Target | None) -> list[Waypoint]:
+    def drop_waypoints_seen_by_others(self, sight: np.ndarray, target: Target | None,
+                                      seen_only: bool = False) -> list[Waypoint]:
         """Bayer & Faigl: a waypoint is removed when another robot reported its presence
         closer than d_cam. Taken literally that cancels what nobody looked at (robots leaving
         a common staging area cancel each other's waypoints; a robot passing the door of a
@@ -45,6 +46,9 @@ class PresenceRule:
         (Counting only places with e_inf 0 left robots re-exploring what teammates had seen
         whenever those still had anything nearby: on maze_b, MinPos drove 1.3 times as far as
         with dense maps over ten seeds.)
+        With seen_only (a robot's last look before it stops), only the places whose sender
+        reports no information left there (e_inf 0) count: the teammate saw what was around
+        them, where a place still promising information says it did not.
         Returns the waypoints it dropped."""
         if not len(self.s.topo) or not self.s.waypoints.items:
             return []
@@ -56,7 +60,10 @@ class PresenceRule:
             near_target = [(w.x_m - t.x_m) ** 2 + (w.y_m - t.y_m) ** 2 < r2 for w in items]
             held = [w for w, near in zip(items, near_target) if near]
             items = [w for w, near in zip(items, near_target) if not near]
-        keep, dropped = self._split_by_team_view(items, sight, self._places_of_others())
+        others = self._places_of_others()
+        if seen_only:
+            others = others[self.s.topo.e_inf_codes()[others] == 0]
+        keep, dropped = self._split_by_team_view(items, sight, others)
         self.s.waypoints.items = held + keep
         self.dropped += len(dropped)
         return dropped

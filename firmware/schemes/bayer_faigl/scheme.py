@@ -86,7 +86,8 @@ class BayerFaigl(Scheme):
 
     # --- the planning stage -----------------------------------------------------------
     def filter_waypoints(self, view: PlanningView) -> None:
-        self._dropped_this_cycle = self.presence.drop_waypoints_seen_by_others(view.sight, view.target)
+        self._dropped_this_cycle = self.presence.drop_waypoints_seen_by_others(view.sight, view.target,
+                                                                               seen_only=view.closing)
 
     def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
         p = self.s.params
