@@ -27,8 +27,8 @@ from firmware.schemes.base import NEEDS, PRIORITY_STATUS, Scheme, Services
 from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.services.motion import PathFollower, StallDetector
 from firmware.services.planner import Planner
-from firmware.services.recovery import Recovery, clear_behind
 from firmware.services.pose import SHARED_FRAME, PoseService
+from firmware.services.recovery import Recovery, clear_behind
 from firmware.services.roster import Roster
 from firmware.services.targets import TargetKeeper
 from firmware.services.topo_map import TopoMap

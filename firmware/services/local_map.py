@@ -330,6 +330,8 @@ class LocalMap:
         h = EXPECTED_FACE_HALF_SIDE_CELLS
         free = crop == kernels.FREE
         clearance_cells = np.maximum(d_occ_cells - h, 0.0)
+        # A cell a little beyond where the centre surely fits still goes to the kernel, so that
+        # a path through a door an even number of cells wide runs down its middle.
         sure = free & (d_occ_cells >= _CHAMFER_LONG * (body_cells + h * math.sqrt(2.0)) + 1.0)
         hopeless = d_occ_cells + _HALF_DIAGONAL < body_cells
         band_i, band_j = np.nonzero(free & ~sure & ~hopeless)
@@ -348,4 +350,3 @@ class LocalMap:
             standing[band_i, band_j] = np.where(fits, k_expected, k_hopeful)
             clearance_cells[band_i, band_j] = np.where(fits, expected, hopeful - h)
         return traversable, cost, (clearance_cells * res).astype(np.float32), standing
-        return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable, cell_cost=cell_cost)
