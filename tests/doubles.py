@@ -1,12 +1,13 @@
 """Shared test doubles: a clock the test steps, a fake radio, a scripted HAL, a planner rig
 that runs the shared planner and a scheme on a hand-built local map, the Channel handle a
-virtual modem talks to, a scripted RN2483 on a real pseudo-terminal, and `lorascout modem`
-run as a subprocess. Tests import them from here."""
+virtual modem talks to, a scripted RN2483 on a real pseudo-terminal, `lorascout modem` run
+as a subprocess, and a pair of ODrive axes on a python-can bus. Tests import them from here."""
 from __future__ import annotations
 
 import math
 import os
 import signal
+import struct
 import subprocess
 import sys
 import threading
@@ -14,6 +15,7 @@ import time
 import tty
 from pathlib import Path
 
+import can
 import numpy as np
 
 from firmware.agent import ExplorerAgent
@@ -28,6 +30,8 @@ from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
 from hal import rn2483_protocol as P
 from hal.bundle import Hal
+from hal.odrive_can import (AXIS_STATE_CLOSED_LOOP_CONTROL, AXIS_STATE_IDLE, SET_AXIS_STATE, SET_CONTROLLER_MODE,
+                            SET_INPUT_VEL, DiffDriveGeometry, encoder_estimates)
 from hal.lora import RadioProfile
 from hal.samples import DriveLimits, LidarScan, OdometrySample, RadioRxFrame, RadioTxDone
 
@@ -305,3 +309,39 @@ class ModemServer:
         if self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait()
+
+
+class FakeAxes:
+    """Two ODrive axes on the bus: they take the drive's commands and, on `run`, turn at the
+    commanded speed and broadcast their encoder estimates every `period_s`."""
+
+    def __init__(self, channel: str, geometry: DiffDriveGeometry) -> None:
+        self.bus = can.Bus(channel, interface="virtual")
+        self.nodes = (geometry.left_node, geometry.right_node)
+        self.turns = {n: 0.0 for n in self.nodes}
+        self.velocity = {n: 0.0 for n in self.nodes}
+        self.state = {n: AXIS_STATE_IDLE for n in self.nodes}
+        self.control_mode = {n: None for n in self.nodes}
+
+    def take_commands(self) -> None:
+        while (msg := self.bus.recv(timeout=0.0)) is not None:
+            node, command = msg.arbitration_id >> 5, msg.arbitration_id & 0x1F
+            if node not in self.nodes:
+                continue
+            if command == SET_INPUT_VEL:
+                self.velocity[node] = struct.unpack("<ff", bytes(msg.data))[0]
+            elif command == SET_AXIS_STATE:
+                self.state[node] = struct.unpack("<I", bytes(msg.data))[0]
+            elif command == SET_CONTROLLER_MODE:
+                self.control_mode[node] = struct.unpack("<II", bytes(msg.data))[0]
+
+    def run(self, seconds: float, period_s: float = 0.01) -> None:
+        self.take_commands()
+        for _ in range(round(seconds / period_s)):
+            for n in self.nodes:
+                if self.state[n] == AXIS_STATE_CLOSED_LOOP_CONTROL:
+                    self.turns[n] += self.velocity[n] * period_s
+                    self.bus.send(encoder_estimates(n, self.turns[n], self.velocity[n]))
+                else:
+                    self.bus.send(encoder_estimates(n, self.turns[n], 0.0))
+
