@@ -155,21 +155,30 @@ def _run(cfg: RobotConfig, args: argparse.Namespace, signals: StopSignals) -> in
 
 
 def _shut_down(robot: Robot, result: LoopResult) -> dict:
-    """Command the drive to zero, take the run's figures, close every device: the report."""
+    """Command the drive to zero, take the run's figures, close every device: the report.
+    The devices are closed even if taking the figures fails."""
+    drive_stopped = _stop_drive(robot)
+    agent = robot.agent
+    try:
+        report = {**_identity(robot.config), **result.to_json(), "started": True, "drive_stopped": drive_stopped,
+                  "status": agent.status, "scans": agent.scans, "explorer_stats": agent.stats(),
+                  **{name: fn() for name, fn in robot.ctx.reports.items()}}
+    finally:
+        close_failures = robot.ctx.close()
+        for failure in close_failures:
+            log.error("closing %s", failure)
+    report["close_failures"] = close_failures
+    return report
+
+
+def _stop_drive(robot: Robot) -> bool:
+    """Command the drive to zero; False (logged) if the drive refused."""
     try:
         robot.hal.drive.command(0.0, 0.0)
-        drive_stopped = True
     except Exception:                  # noqa: BLE001 - closing the devices must still happen
         log.exception("could not command the drive to zero")
-        drive_stopped = False
-    agent = robot.agent
-    report = {**_identity(robot.config), **result.to_json(), "started": True, "drive_stopped": drive_stopped,
-              "status": agent.status, "scans": agent.scans, "explorer_stats": agent.stats(),
-              **{name: fn() for name, fn in robot.ctx.reports.items()}}
-    report["close_failures"] = robot.ctx.close()
-    for failure in report["close_failures"]:
-        log.error("closing %s", failure)
-    return report
+        return False
+    return True
 
 
 def _identity(cfg: RobotConfig) -> dict:

@@ -2,8 +2,9 @@
 that runs the shared planner and a scheme on a hand-built local map, the Channel handle a
 virtual modem talks to, a scripted RN2483 on a real pseudo-terminal, `lorascout modem` run
 as a subprocess, a pair of ODrive axes on a python-can bus, a wall clock that moves only
-when told and a task whose runs take scripted times on it, and `lorascout robot` run as a
-subprocess. Tests import them from here."""
+when told and a task whose runs take scripted times on it, `lorascout robot` run as a
+subprocess, and a stand-in for a LiDAR backend not registered yet. Tests import them from
+here."""
 from __future__ import annotations
 
 import math

@@ -316,3 +316,17 @@ def test_the_sim_example_runs_in_real_time_until_a_signal_stops_it_with_the_driv
     assert report["drive_stopped"] and report["world"]["drive_command"] == {"v_mps": 0.0, "omega_radps": 0.0}
     assert report["close_failures"] == [] and report["error"] is None
     assert set(report["tasks"]) == {"radio", "heartbeat", "lidar", "control", "planning"}
+
+
+def test_a_failure_while_running_still_stops_the_drive_and_closes_everything(tmp_path, cli, monkeypatch, caplog):
+    def lost(self, now_us):
+        raise OSError("serial line lost")
+
+    monkeypatch.setattr(ExplorerAgent, "_task_lidar", lost)   # a device error surfacing in a task
+    r = cli("robot", "--config", write(tmp_path, SIM), "--json", "--max-s", "5")
+    assert r.code == 1, r
+    report = json.loads(r.out)
+    assert report["termination"] == "error" and report["error"] == "OSError: serial line lost"
+    assert report["ticks"] == 0 and report["drive_stopped"] and report["close_failures"] == []
+    assert report["world"]["drive_command"] == {"v_mps": 0.0, "omega_radps": 0.0}
+    assert any(rec.getMessage() == "the tick loop failed" and rec.exc_info for rec in caplog.records)
