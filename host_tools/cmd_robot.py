@@ -17,6 +17,7 @@ import contextlib
 import logging
 import signal
 import sys
+import textwrap
 
 from hal.monotonic_clock import SHARED_KEY, MonotonicClock
 from host_tools.options import JSON, SIM_S_MAX, Opt, add_options
@@ -44,10 +45,11 @@ OPTIONS = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_options(p, OPTIONS)
     p.formatter_class = argparse.RawDescriptionHelpFormatter
-    p.description = (f"{p.description}\n\nEvery task's time budget is its period (radio and control 50 ms, lidar "
-                     "100 ms, planning 1 s); a run over it is an overrun, and so is a tick longer than the tick "
-                     "period (50 ms). SIGINT or SIGTERM stops the robot after the tick that is running (a second "
-                     "one at once); the drive is commanded to zero and every device closed.")
+    p.description = f"{p.description}\n\n" + textwrap.fill(
+        "Every task's time budget is its period (radio and control 50 ms, lidar 100 ms, planning 1 s); a run over "
+        "it is an overrun, and so is a tick longer than the tick period (50 ms). SIGINT or SIGTERM stops the robot "
+        "after the tick that is running (a second one at once); the drive is commanded to zero and every device "
+        "closed.", width=88)
     p.epilog = config_help()
 
 

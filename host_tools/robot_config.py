@@ -15,6 +15,7 @@ fails, what was opened is closed again.
 """
 from __future__ import annotations
 
+import textwrap
 import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -312,12 +313,12 @@ def config_help() -> str:
     generated from the declarations the checks use."""
     from hal.sim.realtime_world import WORLD_SETTINGS
 
-    lines = ["configuration file (TOML; examples/robot-sim.toml, examples/robot-real.toml):",
-             "  [robot]", *(f"    {s.help_line()}" for s in ROBOT_SETTINGS),
-             "  [params]",
-             "    explorer parameters, NAME = VALUE, as --set takes them (lorascout run --help lists them)",
+    lines = ["configuration file (TOML; examples/robot-sim.toml, examples/robot-real.toml):", "  [robot]",
+             *(_indented(s.help_line(), 4) for s in ROBOT_SETTINGS),
+             "  [params]", _indented("explorer parameters, NAME = VALUE, as --set takes them (lorascout run --help "
+                                     "lists them)", 4),
              "  [world]  the simulated world the 'sim' backends are part of, stepped to the wall clock",
-             *(f"    {s.help_line()}" for s in WORLD_SETTINGS)]
+             *(_indented(s.help_line(), 4) for s in WORLD_SETTINGS)]
     for kind in PERIPHERALS:
         absent = ("required" if kind in REQUIRED_PERIPHERALS
                   else f"without the table: backend {DEFAULT_BACKENDS[kind]!r}")
@@ -326,5 +327,10 @@ def config_help() -> str:
             cls = backend_class(kind, name)
             if cls.SETTINGS:
                 lines.append(f"    backend {name!r}:")
-                lines.extend(f"      {s.help_line()}" for s in cls.SETTINGS)
+                lines.extend(_indented(s.help_line(), 6) for s in cls.SETTINGS)
     return "\n".join(lines)
+
+
+def _indented(text: str, indent: int) -> str:
+    """`text` wrapped to 100 columns, indented, its continuation lines a little more."""
+    return textwrap.fill(text, width=100, initial_indent=" " * indent, subsequent_indent=" " * (indent + 4))
