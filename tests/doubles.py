@@ -2,9 +2,8 @@
 that runs the shared planner and a scheme on a hand-built local map, the Channel handle a
 virtual modem talks to, a scripted RN2483 on a real pseudo-terminal, `lorascout modem` run
 as a subprocess, a pair of ODrive axes on a python-can bus, a wall clock that moves only
-when told and a task whose runs take scripted times on it, `lorascout robot` run as a
-subprocess, and a stand-in for a LiDAR backend not registered yet. Tests import them from
-here."""
+when told and a task whose runs take scripted times on it, and `lorascout robot` run as a
+subprocess. Tests import them from here."""
 from __future__ import annotations
 
 import math
@@ -33,7 +32,6 @@ from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
 from hal import rn2483_protocol as P
 from hal.bundle import Hal
-from hal.config import Setting
 from hal.odrive_can import (AXIS_STATE_CLOSED_LOOP_CONTROL, AXIS_STATE_IDLE, SET_AXIS_STATE, SET_CONTROLLER_MODE,
                             SET_INPUT_VEL, DiffDriveGeometry, encoder_estimates)
 from hal.lora import RadioProfile
@@ -421,17 +419,3 @@ class RobotProcess:
         if self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait()
-
-
-class SerialLidarStandIn:
-    """Stands in the backend registry for the RPLIDAR backend (issue 26, item 4) until that
-    backend is registered: it declares the one setting the real-robot example gives it, so
-    that `--check` can check the rest of that example. Checking never builds a backend;
-    building this one is a test failure."""
-
-    SETTINGS = (Setting("port", "text", "the scanner's serial device"),)
-    RESOURCES = ()
-
-    @classmethod
-    def from_config(cls, ctx, port: str):
-        raise AssertionError(f"a LiDAR on {port} was opened, but only the configuration was to be checked")

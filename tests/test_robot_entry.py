@@ -112,6 +112,19 @@ MISTAKES = [
     ({"drive": {**DRIVE, "interface": "socketcam"}}, "[drive] interface: 'socketcam' is no python-can interface"),
     ({"drive": {**DRIVE, "right_node": 0}}, "[drive] right_node: 0 is left_node's too"),
     ({"drive": {**DRIVE, "left_direction": 2}}, "[drive] left_direction: 2 is not one of 1, -1"),
+    ({"lidar": {"backend": "rplidar"}}, "[lidar] port: missing: the scanner's serial device"),
+    ({"lidar": {"backend": "rplidar", "port": "/dev/ttyUSB1", "range_max_m": 20.0}},
+     "[lidar] range_max_m: 20.0 is out of range; valid: a number, 0 < X <= 16.3837 m"),
+    ({"lidar": {"backend": "rplidar", "port": "/dev/ttyUSB1", "motor_pwm": 1024}},
+     "[lidar] motor_pwm: 1024 is out of range; valid: an integer, 0 <= X <= 1023"),
+    ({"uwb": {"backend": "dwm1001", "port": "/dev/ttyACM0", "peer_addresses": "1=0x1A2B"}},
+     "[uwb] peer_addresses: '1=0x1A2B' is not ROBOT:ADDRESS"),
+    ({"uwb": {"backend": "dwm1001", "port": "/dev/ttyACM0", "peer_addresses": "1:0x1A2B, 2:1a2b"}},
+     "[uwb] peer_addresses: '2:1a2b': address 0x1A2B is robot 1's too"),
+    ({"uwb": {"backend": "dwm1001", "port": "/dev/ttyACM0", "peer_addresses": "1:0x1A2B, 1:0x1A2C"}},
+     "[uwb] peer_addresses: '1:0x1A2C': robot 1 is given twice"),
+    ({"uwb": {"backend": "dwm1001", "port": "/dev/ttyACM0", "peer_addresses": "1:0x10000"}},
+     "[uwb] peer_addresses: '1:0x10000': address 0x10000 is not a 16-bit short address"),
     ({"drive": DRIVE, "odometry": {**ODRIVE, "wheel_radius_m": 0.09}},
      "[odometry] wheel_radius_m: 0.09, but [drive] wheel_radius_m is 0.08: both tables describe one odrive-can"),
 ]
@@ -161,9 +174,6 @@ def test_the_real_example_is_checked_without_opening_a_device(cli, monkeypatch):
 
     monkeypatch.setattr(serial, "serial_for_url", refuse)
     monkeypatch.setattr(can, "Bus", refuse)
-    if "rplidar" not in BACKENDS["lidar"]:
-        # The RPLIDAR backend comes with issue 26's item 4; until then a stand-in declares it.
-        monkeypatch.setitem(BACKENDS["lidar"], "rplidar", ("tests.doubles", "SerialLidarStandIn"))
     r = cli("robot", "--config", REAL_EXAMPLE, "--check", "--json")
     assert r.code == 0, r
     checked = json.loads(r.out)
@@ -173,6 +183,10 @@ def test_the_real_example_is_checked_without_opening_a_device(cli, monkeypatch):
                                     "reply_timeout_s": 2.0, "reset_timeout_s": 3.0, "configure": True}
     assert peripherals["drive"]["backend"] == "odrive-can" and peripherals["drive"]["channel"] == "can0"
     assert peripherals["odometry"]["start_x_m"] == 2.0 and peripherals["clock"] == {"backend": "monotonic"}
+    assert peripherals["lidar"] == {"backend": "rplidar", "port": "/dev/ttyUSB1", "baudrate": 115200, "beams": 360,
+                                    "range_max_m": 12.0, "reply_timeout_s": 1.0, "min_nodes_per_revolution": 36}
+    assert peripherals["uwb"] == {"backend": "dwm1001", "port": "/dev/ttyACM0", "baudrate": 115200,
+                                  "poll_hz": 10.0, "reply_timeout_s": 1.0, "peer_addresses": "0:0x1A2B, 2:0x1A2D"}
     r = cli("robot", "--config", REAL_EXAMPLE, "--check")
     assert r.code == 0 and "robot-real.toml: valid (nothing opened)" in r.out, r
 
