@@ -20,6 +20,11 @@ the table does not know (counted). A range's stamp is the clock time its dwm_loc
 Lockstep (`lockstep=True`, for world_sim.devices): no poller thread; the simulation runner
 calls `sync()` between firmware ticks, which asks the same two questions and waits for the
 answers, so the firmware sees the world's ranges at the tick they were measured.
+
+Built from configuration (hal.config) as `[uwb] backend = "dwm1001"`: the port, the
+constructor's settings (SETTINGS) and the teammates' modules as text
+(`peer_addresses = "0:0x1A2B, 2:0x1A2D"`, see `parse_peer_addresses`), free-running on the
+robot's clock.
 """
 from __future__ import annotations
 
@@ -31,12 +36,44 @@ import serial
 import serial.threaded
 
 from hal import dwm1001_protocol as P
+from hal.config import BuildContext, ConfigError, Setting
 from hal.interfaces import Clock
 from hal.samples import UwbRange
 
 # Ranges nobody collected are dropped oldest first beyond this many (as the simulated world
 # keeps its measurement queues bounded).
 MAX_PENDING_RANGES = 1024
+# Robot ids a peer address table may name (node ids on the radio are one byte).
+MAX_ROBOT_ID = 255
+
+
+def parse_peer_addresses(text: str) -> dict[int, int]:
+    """UWB short address -> robot id, from "ROBOT:ADDRESS, ..." (robot ids in decimal,
+    addresses 16-bit hexadecimal, with or without 0x: "0:0x1A2B, 2:1A2D"). ValueError naming
+    the entry that is malformed, out of range or given twice."""
+    peers: dict[int, int] = {}
+    robots: set[int] = set()
+    for entry in text.split(","):
+        robot_text, sep, address_text = entry.strip().partition(":")
+        try:
+            if not sep:
+                raise ValueError
+            robot, address = int(robot_text.strip(), 10), int(address_text.strip(), 16)
+        except ValueError:
+            raise ValueError(f"{entry.strip()!r} is not ROBOT:ADDRESS (a robot id and its module's 16-bit short "
+                             f"address in hexadecimal, e.g. 2:0x1A2D)") from None
+        if not 0 <= robot <= MAX_ROBOT_ID:
+            raise ValueError(f"{entry.strip()!r}: robot id {robot} is not in 0 .. {MAX_ROBOT_ID}")
+        if not 0 <= address <= 0xFFFF:
+            raise ValueError(f"{entry.strip()!r}: address 0x{address:X} is not a 16-bit short address")
+        if robot in robots:
+            raise ValueError(f"{entry.strip()!r}: robot {robot} is given twice")
+        if address in peers:
+            raise ValueError(f"{entry.strip()!r}: address 0x{address:04X} is robot {peers[address]}'s too")
+        peers[address] = robot
+        robots.add(robot)
+    return peers
+
 
 class Dwm1001Error(RuntimeError):
     """The module answered wrongly or not at all at start-up."""
@@ -55,6 +92,29 @@ class _Bytes(serial.threaded.Protocol):
 
 class Dwm1001Ranger:
     """hal.interfaces.UwbRanger over the DWM1001 TLV API."""
+
+    # Built from configuration (hal.config): the constructor's settings, on the robot's clock.
+    SETTINGS = (
+        Setting("port", "text", "the module's serial device or a pyserial URL (/dev/ttyACM0, socket://HOST:PORT)"),
+        Setting("baudrate", "int", "the UART's speed", unit="bit/s", default=P.BAUDRATE, lo=9600, hi=1_000_000),
+        Setting("poll_hz", "float", "how often the module is asked for new location data (it ranges at its own "
+                "update rate, at most 10 Hz)", unit="Hz", default=10.0, lo=0.0, lo_open=True, hi=100.0),
+        Setting("reply_timeout_s", "float", "how long to wait for the module's answer to a request", unit="s",
+                default=1.0, lo=0.05, hi=60.0),
+        Setting("peer_addresses", "text", "the teammates' modules, ROBOT:ADDRESS, comma-separated (\"0:0x1A2B, "
+                "2:0x1A2D\"; addresses 16-bit hexadecimal); left out: the emulated team's plan (robot r is "
+                f"0x{P.ADDRESS_BASE:04X} + r), under which a real module's ranges are dropped as unknown",
+                default=None, check=parse_peer_addresses),
+    )
+    RESOURCES = ()
+
+    @classmethod
+    def from_config(cls, ctx: BuildContext, port: str, peer_addresses: str | None = None,
+                    **settings) -> Dwm1001Ranger:
+        if ctx.clock is None:
+            raise ConfigError(None, "the DWM1001 needs the robot's clock to stamp its ranges")
+        peer_ids = None if peer_addresses is None else parse_peer_addresses(peer_addresses)
+        return cls(port, ctx.clock, peer_ids=peer_ids, **settings)
 
     def __init__(self, url_or_path: str, clock: Clock | None = None, *, peer_ids: Mapping[int, int] | None = None,
                  poll_hz: float = 10.0, baudrate: int = P.BAUDRATE, reply_timeout_s: float = 1.0,

@@ -8,7 +8,15 @@ from hal.samples import AoaBearing, RadioEvent, UwbRange
 
 
 class NullPeripheral:
-    """Marks a null backend."""
+    """Marks a null backend. Built from configuration like any backend (hal.config), with
+    nothing to configure: `backend = "null"`, or no table at all for an optional peripheral."""
+
+    SETTINGS = ()
+    RESOURCES = ()
+
+    @classmethod
+    def from_config(cls, ctx) -> NullPeripheral:
+        return cls()
 
 
 class NullUwbRanger(NullPeripheral):

@@ -10,6 +10,11 @@ broadcast (configure them to send `Get_Encoder_Estimates` cyclically, e.g. every
 Any python-can bus works: SocketCAN on a robot computer, a USB adapter, or the `virtual`
 interface in tests. Both classes only send or poll without blocking, so the firmware's tick
 never waits on the bus.
+
+Built from configuration (hal.config), the drive and the odometry each take the bus and the
+wheels' geometry (BUS_SETTINGS, GEOMETRY_SETTINGS); on one bus they share one python-can bus
+object, and a robot's configuration must give both the same values (AGREES_WITH). The drive
+is armed when it is built and disarmed when it is closed.
 """
 from __future__ import annotations
 
@@ -19,6 +24,7 @@ from dataclasses import dataclass
 
 import can
 
+from hal.config import BuildContext, ConfigError, Setting
 from hal.interfaces import Clock
 from hal.samples import DriveLimits, OdometrySample
 
@@ -111,15 +117,87 @@ class DiffDriveGeometry:
         return left_turns * self.left_direction * circumference_m, right_turns * self.right_direction * circumference_m
 
 
+def _check_interface(name: str) -> None:
+    if name not in can.interfaces.VALID_INTERFACES:
+        known = ", ".join(sorted(can.interfaces.VALID_INTERFACES))
+        raise ValueError(f"{name!r} is no python-can interface; known: {known}")
+
+
+BUS_SETTINGS = (
+    Setting("interface", "text", "the python-can interface", default="socketcan", check=_check_interface),
+    Setting("channel", "text", "the bus: can0 for SocketCAN, an adapter's port, a virtual bus's name"),
+    Setting("bitrate", "int", "the bus's bit rate, for interfaces that set it (SocketCAN takes it from `ip link`)",
+            unit="bit/s", default=None, lo=10_000, hi=1_000_000),
+)
+GEOMETRY_SETTINGS = (
+    Setting("left_node", "int", "CANSimple node id of the left wheel's axis", lo=0, hi=MAX_NODE_ID),
+    Setting("right_node", "int", "CANSimple node id of the right wheel's axis", lo=0, hi=MAX_NODE_ID),
+    Setting("wheel_radius_m", "float", "wheel radius", unit="m", lo=0.0, lo_open=True, hi=5.0),
+    Setting("track_width_m", "float", "distance between the wheels' contact points", unit="m", lo=0.0,
+            lo_open=True, hi=20.0),
+    Setting("left_direction", "int", "1 when a positive axis velocity drives the left wheel forward",
+            default=1, choices=(1, -1)),
+    Setting("right_direction", "int", "1 when a positive axis velocity drives the right wheel forward "
+            "(mirrored motors: -1)", default=-1, choices=(1, -1)),
+)
+
+
+def open_bus(ctx: BuildContext, interface: str, channel: str, bitrate: int | None) -> can.BusABC:
+    """The python-can bus for these settings, opened once per robot and shut down with it."""
+    extra = {} if bitrate is None else {"bitrate": bitrate}
+    return ctx.shared(("can-bus", interface, channel, bitrate),
+                      lambda: can.Bus(channel=channel, interface=interface, **extra), lambda bus: bus.shutdown())
+
+
+def _split(settings: dict) -> tuple[dict, dict, dict]:
+    """(bus settings, geometry settings, the rest) of a checked configuration table."""
+    bus = {s.name: settings.get(s.name) for s in BUS_SETTINGS}
+    geometry = {s.name: settings[s.name] for s in GEOMETRY_SETTINGS}
+    rest = {k: v for k, v in settings.items() if k not in bus and k not in geometry}
+    return bus, geometry, rest
+
+
+def _check_geometry(settings: dict) -> None:
+    """What the settings' own ranges cannot say (DiffDriveGeometry checks the rest again)."""
+    if settings["left_node"] == settings["right_node"]:
+        raise ConfigError("right_node", f"{settings['right_node']} is left_node's too: each wheel needs an axis "
+                          "of its own")
+
+
 class OdriveDiffDrive:
     """`DriveBase` on two ODrive axes. `arm()` puts both into closed-loop velocity control;
     `disarm()` stops them and lets them go idle. Commands beyond the limits are clipped, as
     the simulated base clips them."""
 
+    SETTINGS = BUS_SETTINGS + GEOMETRY_SETTINGS + (
+        Setting("max_v_mps", "float", "top forward speed the firmware may command", unit="m/s", lo=0.0,
+                lo_open=True, hi=20.0),
+        Setting("max_omega_radps", "float", "top turn rate the firmware may command", unit="rad/s", lo=0.0,
+                lo_open=True, hi=50.0),
+        Setting("robot_radius_m", "float", "radius of the circle the robot's body fits in", unit="m", lo=0.0,
+                lo_open=True, hi=5.0),
+    )
+    RESOURCES = ()
+
     def __init__(self, bus: can.BusABC, geometry: DiffDriveGeometry, limits: DriveLimits) -> None:
         self._bus = bus
         self.geometry = geometry
         self._limits = limits
+
+    @classmethod
+    def check_config(cls, settings: dict) -> None:
+        _check_geometry(settings)
+
+    @classmethod
+    def from_config(cls, ctx: BuildContext, **settings) -> OdriveDiffDrive:
+        bus, geometry, limits = _split(settings)
+        drive = cls(open_bus(ctx, **bus), DiffDriveGeometry(**geometry), DriveLimits(**limits))
+        drive.arm()
+        return drive
+
+    def close(self) -> None:
+        """Stop both wheels and leave the axes idle; the bus stays open (it may be shared)."""
+        self.disarm()
 
     def limits(self) -> DriveLimits:
         return self._limits
@@ -157,6 +235,18 @@ class OdriveWheelOdometry:
     (differential-drive arc), and reports it with the clock's time. The pose starts at
     `start` in the mission frame. Frames it cannot use are counted, never raised."""
 
+    SETTINGS = BUS_SETTINGS + GEOMETRY_SETTINGS + (
+        Setting("start_x_m", "float", "the robot's start position in the mission frame", unit="m", default=0.0,
+                lo=-1e6, hi=1e6),
+        Setting("start_y_m", "float", "the robot's start position in the mission frame", unit="m", default=0.0,
+                lo=-1e6, hi=1e6),
+        Setting("start_yaw_deg", "float", "the robot's start heading in the mission frame", unit="deg",
+                default=0.0, lo=-360.0, hi=360.0),
+    )
+    RESOURCES = ()
+    # The drive on the same backend drives these wheels on this bus: both tables must agree.
+    AGREES_WITH = {"drive": tuple(s.name for s in BUS_SETTINGS + GEOMETRY_SETTINGS)}
+
     def __init__(self, bus: can.BusABC, clock: Clock, geometry: DiffDriveGeometry,
                  start: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
         self._bus = bus
@@ -169,6 +259,19 @@ class OdriveWheelOdometry:
         self.axis_state: dict[int, int | None] = {geometry.left_node: None, geometry.right_node: None}
         self.axis_error: dict[int, int] = {geometry.left_node: 0, geometry.right_node: 0}
         self.counters = BusCounters()
+
+    @classmethod
+    def check_config(cls, settings: dict) -> None:
+        _check_geometry(settings)
+
+    @classmethod
+    def from_config(cls, ctx: BuildContext, start_x_m: float, start_y_m: float, start_yaw_deg: float,
+                    **settings) -> OdriveWheelOdometry:
+        if ctx.clock is None:
+            raise ConfigError(None, "the odometry needs the robot's clock to stamp its samples")
+        bus, geometry, _ = _split(settings)
+        return cls(open_bus(ctx, **bus), ctx.clock, DiffDriveGeometry(**geometry),
+                   start=(start_x_m, start_y_m, math.radians(start_yaw_deg)))
 
     def read(self) -> OdometrySample:
         while (msg := self._bus.recv(timeout=0.0)) is not None:

@@ -47,6 +47,7 @@ import serial
 import serial.threaded
 
 from hal import rn2483_protocol as P
+from hal.config import BuildContext, ConfigError, Setting
 from hal.interfaces import Clock
 from hal.lora import PRIVATE_SYNC_WORD, PROFILES, RadioProfile
 from hal.samples import RadioEvent, RadioRxFrame, RadioTxDone
@@ -95,6 +96,25 @@ class _Lines(serial.threaded.LineReader):
 
 class Rn2483Modem:
     """hal.interfaces.RadioModem over the RN2483 / RN2903 radio command set."""
+
+    # Built from configuration (hal.config), on the robot's radio profile and clock.
+    SETTINGS = (
+        Setting("port", "text", "the module's serial device or a pyserial URL (/dev/ttyUSB0, socket://HOST:PORT)"),
+        Setting("baudrate", "int", "the UART's speed", unit="bit/s", default=P.BAUDRATE, lo=1200, hi=1_000_000),
+        Setting("reply_timeout_s", "float", "how long to wait for the module's answer to a command", unit="s",
+                default=2.0, lo=0.05, hi=60.0),
+        Setting("reset_timeout_s", "float", "how long to wait for the module to restart after `sys reset`",
+                unit="s", default=3.0, lo=0.1, hi=60.0),
+        Setting("configure", "bool", "reset the module and configure it for the radio profile at start-up "
+                "(false: use it as it is configured)", default=True),
+    )
+    RESOURCES = ()
+
+    @classmethod
+    def from_config(cls, ctx: BuildContext, port: str, **settings) -> Rn2483Modem:
+        if ctx.radio_profile is None:
+            raise ConfigError(None, "an RN2483 needs the robot's radio profile to configure the module")
+        return cls(port, ctx.radio_profile, ctx.clock, **settings)
 
     def __init__(self, url_or_path: str, profile: RadioProfile = PROFILES["eu868-g3"],
                  clock: Clock | None = None, *, baudrate: int = P.BAUDRATE,

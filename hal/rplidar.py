@@ -32,6 +32,9 @@ firmware sees exactly the scans the world had taken up to that tick.
 Motor: an A1's motor runs while the adapter holds DTR low; the backend sets it low at start
 and high at close, and skips it on ports without modem lines (pseudo-terminals). A2/A3
 scanners take `motor_pwm` over the protocol instead.
+
+Built from configuration (hal.config) as `[lidar] backend = "rplidar"`: the port and the
+constructor's settings (SETTINGS), free-running on the robot's clock.
 """
 from __future__ import annotations
 
@@ -45,6 +48,7 @@ import serial
 import serial.threaded
 
 from hal import rplidar_protocol as P
+from hal.config import BuildContext, ConfigError, Setting
 from hal.interfaces import Clock
 from hal.samples import LidarScan
 
@@ -142,6 +146,31 @@ class _Bytes(serial.threaded.Protocol):
 
 class RplidarLidar:
     """hal.interfaces.Lidar over the RPLIDAR serial protocol (standard SCAN)."""
+
+    # Built from configuration (hal.config): the constructor's settings, on the robot's clock.
+    SETTINGS = (
+        Setting("port", "text", "the scanner's serial device or a pyserial URL (/dev/ttyUSB1, socket://HOST:PORT)"),
+        Setting("baudrate", "int", "the UART's speed (A1 and A2M8: 115200; A2M12 and A3: 256000)", unit="bit/s",
+                default=P.BAUDRATE, lo=9600, hi=1_000_000),
+        Setting("beams", "int", "angular bins a revolution is assembled into, from -pi counter-clockwise (nodes "
+                "in one bin keep the nearest)", unit="beams", default=360, lo=8, hi=3600),
+        Setting("range_max_m", "float", "the scans' maximum range: a bin without a valid return reads it (the "
+                "standard scan's 16-bit distances end at the upper bound)", unit="m", default=A1_RANGE_MAX_M, lo=0.0,
+                lo_open=True, hi=P.MAX_DISTANCE_Q2 / (P.DISTANCE_Q2_PER_MM * 1000.0)),
+        Setting("reply_timeout_s", "float", "how long to wait for the scanner's answer at start-up", unit="s",
+                default=1.0, lo=0.05, hi=60.0),
+        Setting("motor_pwm", "int", "motor speed set over the protocol at start-up, for A2/A3 scanners (an A1's "
+                "motor runs off the adapter's DTR line: leave it out)", default=None, lo=0, hi=P.MAX_MOTOR_PWM),
+        Setting("min_nodes_per_revolution", "int", "revolutions with fewer nodes are dropped (a scan's start, "
+                "noise that looked like a start flag)", unit="nodes", default=36, lo=1, hi=100_000),
+    )
+    RESOURCES = ()
+
+    @classmethod
+    def from_config(cls, ctx: BuildContext, port: str, **settings) -> RplidarLidar:
+        if ctx.clock is None:
+            raise ConfigError(None, "the RPLIDAR needs the robot's clock to stamp its scans")
+        return cls(port, ctx.clock, **settings)
 
     def __init__(self, url_or_path: str, clock: Clock | None = None, *, beams: int = 360,
                  range_max_m: float = A1_RANGE_MAX_M, baudrate: int = P.BAUDRATE, reply_timeout_s: float = 1.0,

@@ -15,6 +15,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "inspect": ("host_tools.cmd_inspect", "decode radio frames from a serial port or a capture"),
     "sweep": ("host_tools.cmd_sweep", "run maps x strategies x seeds and tabulate p_max and bandwidth"),
     "map": ("host_tools.cmd_map", "the area a map asks a team to cover, and how much of it a planner can see at all"),
+    "robot": ("host_tools.cmd_robot", "run one robot's firmware in real time on the peripherals a configuration file names"),
 }
 
 

@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware.params import TaskRates
 from host_tools.mission import MissionConfig, run_mission
 from host_tools.options import JSON, QUIET, SIM_S_MAX, Opt, add_options
 from host_tools.progress import progress_bar
@@ -82,9 +81,10 @@ def _stats_ms(samples_s: list[float]) -> dict:
             "p99_ms": round(float(np.percentile(a, 99)), 4), "max_ms": round(float(a.max()), 4)}
 
 
-def task_budgets_ms(rates: TaskRates = TaskRates()) -> dict[str, float]:
-    """Each task's time budget: its period (a task that runs longer than that overruns)."""
-    return {name: 1000.0 / getattr(rates, f"{name}_hz") for name in ("lidar", "control", "planning", "radio")}
+def task_budgets_ms(agent) -> dict[str, float]:
+    """Each task's time budget, as the agent's task table declares it (firmware.scheduler:
+    its period unless the table says less), the same `lorascout robot` counts overruns by."""
+    return {task.name: task.time_budget_us / 1000.0 for task in agent.scheduler.tasks}
 
 
 def run_bench(name: str, sim_s: float | None, warmup_sim_s: float, quiet: bool,
@@ -112,7 +112,7 @@ def run_bench(name: str, sim_s: float | None, warmup_sim_s: float, quiet: bool,
     bar.close()
     peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     agent = result.agents[0]
-    budgets = task_budgets_ms()
+    budgets = task_budgets_ms(agent)
     tasks = {k: {**_stats_ms(v), "budget_ms": budgets.get(k)}
              for k, v in sorted(profiler.samples_s.items()) if k != "tick"}
     return {

@@ -1,6 +1,7 @@
 """`--set NAME=VALUE` on `lorascout run` and `lorascout sweep`: explorer parameters
 (`firmware.params.ExplorationParams`) changed for one run or a whole grid, so that a variant
-of the firmware's rules is measured by a command, and recorded with its results.
+of the firmware's rules is measured by a command, and recorded with its results. A robot's
+configuration file (`lorascout robot`) changes them in its [params] table, checked the same way.
 
 Types, units and valid ranges come from the parameters' declaration in firmware/params.py;
 so do the list in `--help` (`params_help`) and the README's table (`params_markdown`)."""
@@ -77,6 +78,30 @@ def combine_overrides(pairs: list[tuple[str, bool | int | float]]) -> Overrides:
         check_params(params_with(overrides))
     except ParamError as exc:
         raise ValueError(f"--set {describe(overrides)}: {exc}") from None
+    return overrides
+
+
+def overrides_from_table(table: dict) -> Overrides:
+    """Typed values (a configuration file's [params] table) as Overrides: the same checks as
+    `--set`, without the text: ValueError naming the parameter, the value and the valid
+    range for an unknown name, a value of the wrong type (a string, a float for an int) or
+    out of range, or a combination the parameters' relations forbid."""
+    fields = {f.name for f in dataclasses.fields(ExplorationParams)}
+    pairs = []
+    for name, value in table.items():
+        if name not in fields:
+            raise ValueError(f"{name}: the explorer has no parameter {name!r} "
+                             f"(firmware/params.py lists them: {', '.join(sorted(fields))})")
+        try:
+            check_param(name, value)
+        except ParamError as exc:
+            raise ValueError(f"{name}: {exc}") from None
+        pairs.append((name, float(value) if param_kind(name) == "float" else value))
+    overrides = tuple(sorted(pairs))
+    try:
+        check_params(params_with(overrides))
+    except ParamError as exc:
+        raise ValueError(str(exc)) from None
     return overrides
 
 

@@ -1,12 +1,15 @@
 """Shared test doubles: a clock the test steps, a fake radio, a scripted HAL, a planner rig
 that runs the shared planner and a scheme on a hand-built local map, the Channel handle a
-virtual modem talks to, a scripted RN2483 on a real pseudo-terminal, and `lorascout modem`
-run as a subprocess. Tests import them from here."""
+virtual modem talks to, a scripted RN2483 on a real pseudo-terminal, `lorascout modem` run
+as a subprocess, a pair of ODrive axes on a python-can bus, a wall clock that moves only
+when told and a task whose runs take scripted times on it, and `lorascout robot` run as a
+subprocess. Tests import them from here."""
 from __future__ import annotations
 
 import math
 import os
 import signal
+import struct
 import subprocess
 import sys
 import threading
@@ -14,6 +17,7 @@ import time
 import tty
 from pathlib import Path
 
+import can
 import numpy as np
 
 from firmware.agent import ExplorerAgent
@@ -28,6 +32,8 @@ from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
 from hal import rn2483_protocol as P
 from hal.bundle import Hal
+from hal.odrive_can import (AXIS_STATE_CLOSED_LOOP_CONTROL, AXIS_STATE_IDLE, SET_AXIS_STATE, SET_CONTROLLER_MODE,
+                            SET_INPUT_VEL, DiffDriveGeometry, encoder_estimates)
 from hal.lora import RadioProfile
 from hal.samples import DriveLimits, LidarScan, OdometrySample, RadioRxFrame, RadioTxDone
 
@@ -297,6 +303,114 @@ class ModemServer:
         finally:
             if self.proc.poll() is None:
                 self.proc.kill()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+
+class FakeAxes:
+    """Two ODrive axes on the bus: they take the drive's commands and, on `run`, turn at the
+    commanded speed and broadcast their encoder estimates every `period_s`."""
+
+    def __init__(self, channel: str, geometry: DiffDriveGeometry) -> None:
+        self.bus = can.Bus(channel, interface="virtual")
+        self.nodes = (geometry.left_node, geometry.right_node)
+        self.turns = {n: 0.0 for n in self.nodes}
+        self.velocity = {n: 0.0 for n in self.nodes}
+        self.state = {n: AXIS_STATE_IDLE for n in self.nodes}
+        self.control_mode = {n: None for n in self.nodes}
+
+    def take_commands(self) -> None:
+        while (msg := self.bus.recv(timeout=0.0)) is not None:
+            node, command = msg.arbitration_id >> 5, msg.arbitration_id & 0x1F
+            if node not in self.nodes:
+                continue
+            if command == SET_INPUT_VEL:
+                self.velocity[node] = struct.unpack("<ff", bytes(msg.data))[0]
+            elif command == SET_AXIS_STATE:
+                self.state[node] = struct.unpack("<I", bytes(msg.data))[0]
+            elif command == SET_CONTROLLER_MODE:
+                self.control_mode[node] = struct.unpack("<II", bytes(msg.data))[0]
+
+    def run(self, seconds: float, period_s: float = 0.01) -> None:
+        self.take_commands()
+        for _ in range(round(seconds / period_s)):
+            for n in self.nodes:
+                if self.state[n] == AXIS_STATE_CLOSED_LOOP_CONTROL:
+                    self.turns[n] += self.velocity[n] * period_s
+                    self.bus.send(encoder_estimates(n, self.turns[n], self.velocity[n]))
+                else:
+                    self.bus.send(encoder_estimates(n, self.turns[n], 0.0))
+
+
+class ManualWallClock(StepClock):
+    """A wall clock for host_tools.robot_loop that moves only when told: sleeping jumps to
+    the deadline, and work (a scripted slow task) moves it by `spend_us`."""
+
+    def sleep_until_us(self, t_us: int) -> None:
+        self.t_us = max(self.t_us, t_us)
+
+    def spend_us(self, took_us: int) -> None:
+        self.t_us += took_us
+
+
+class ScriptedSlowTask:
+    """A firmware task (firmware.scheduler.Task's `run`) whose runs take the scripted times
+    on a ManualWallClock, in turn."""
+
+    def __init__(self, clock: ManualWallClock, took_us: list[int]) -> None:
+        self.clock = clock
+        self.took_us = took_us
+        self.runs = 0
+
+    def __call__(self, now_us: int) -> None:
+        self.clock.spend_us(self.took_us[self.runs % len(self.took_us)])
+        self.runs += 1
+
+
+class RobotProcess:
+    """`lorascout robot` as a user runs it: a subprocess whose stderr (the log) is read on a
+    thread, so a test can wait for a line and then signal it."""
+
+    def __init__(self, *argv: str):
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "host_tools.cli", "robot", *argv], cwd=REPO, stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, text=True, preexec_fn=deliverable_sigint)
+        self.log_lines: list[str] = []
+        self._reader = threading.Thread(target=self._read_log, daemon=True)
+        self._reader.start()
+
+    def _read_log(self) -> None:
+        for line in self.proc.stderr:
+            self.log_lines.append(line)
+
+    def wait_for_log(self, text: str, timeout_s: float) -> str:
+        """The first log line holding `text`; AssertionError if none came within timeout_s."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            found = [line for line in self.log_lines if text in line]
+            if found:
+                return found[0]
+            if self.proc.poll() is not None and not self._reader.is_alive():
+                break
+            time.sleep(0.05)
+        raise AssertionError(f"no log line with {text!r} within {timeout_s} s; log: {''.join(self.log_lines)[-2000:]}")
+
+    def stop(self, sig: int, timeout_s: float = 10.0) -> tuple[int, str]:
+        """Send `sig`; (exit status, stdout) once the process ended."""
+        self.proc.send_signal(sig)
+        try:
+            self.proc.wait(timeout=timeout_s)      # the summary is small: it fits the pipe's buffer
+        finally:
+            if self.proc.poll() is None:
+                self.proc.kill()
+        self._reader.join(timeout=2)
+        return self.proc.returncode, self.proc.stdout.read()
 
     def __enter__(self):
         return self

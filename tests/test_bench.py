@@ -24,3 +24,5 @@ def test_bench_reports_cost_per_robot_second_by_quarter(cli):
     assert {"radio", "lidar", "control", "planning", "heartbeat"} <= set(per_task)
     assert all(len(q) == QUARTERS for q in per_task.values())
     assert set(report["last_over_first_quarter"]) == set(per_task)
+    # Budgets come from the task table (its periods), the heartbeat's too.
+    assert report["tasks"]["radio"]["budget_ms"] == 50.0 and report["tasks"]["heartbeat"]["budget_ms"] == 10000.0

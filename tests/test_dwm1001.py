@@ -263,3 +263,29 @@ def test_free_running_driver_polls_on_its_own_thread():
 def test_registry_builds_the_dwm1001_backend_by_name():
     from hal.registry import backend_class
     assert backend_class("uwb", "dwm1001") is Dwm1001Ranger
+
+
+def test_a_configured_dwm1001_maps_the_listed_addresses_on_the_robots_clock():
+    from hal.config import BuildContext
+    from hal.dwm1001 import parse_peer_addresses
+    from hal.registry import build_backend, check_backend
+    assert parse_peer_addresses(" 0:0x1A2B,2:1a2d ") == {0x1A2B: 0, 0x1A2D: 2}
+    world = _world(2)
+    clock = StepClock()
+    clock.t_us = 42_000
+    with Dwm1001Emulator(world, 0) as emu:
+        # The emulated robot 1's module, listed as robot 7's: its ranges come as robot 7's.
+        table = {"port": emu.path, "poll_hz": 100.0, "peer_addresses": f"7:0x{P.robot_address(1):04X}"}
+        ctx = BuildContext(0)
+        ctx.clock = clock
+        ranger = build_backend("uwb", "dwm1001", check_backend("uwb", "dwm1001", table), ctx)
+        try:
+            emu.advance_to(0)
+            deadline = time.monotonic() + 2.0
+            got = ranger.ranges()
+            while not got and time.monotonic() < deadline:
+                time.sleep(0.005)
+                got = ranger.ranges()
+            assert [(r.stamp_us, r.peer_id) for r in got] == [(42_000, 7)]
+        finally:
+            assert ctx.close() == []

@@ -3,7 +3,6 @@ them, a stand-in pair of axes that integrates the commanded wheel speeds, the dr
 clipping and arming, the odometry's arcs, and bytes off the bus that never raise."""
 import itertools
 import math
-import struct
 
 import can
 import pytest
@@ -11,51 +10,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hal.odrive_can import (AXIS_STATE_CLOSED_LOOP_CONTROL, AXIS_STATE_IDLE, CONTROL_MODE_VELOCITY,
-                            GET_ENCODER_ESTIMATES, SET_AXIS_STATE, SET_CONTROLLER_MODE, SET_INPUT_VEL,
-                            DiffDriveGeometry, OdriveDiffDrive, OdriveWheelOdometry, encoder_estimates, frame_id,
-                            heartbeat, set_input_vel)
+                            GET_ENCODER_ESTIMATES, DiffDriveGeometry, OdriveDiffDrive, OdriveWheelOdometry,
+                            encoder_estimates, frame_id, heartbeat, set_input_vel)
 from hal.registry import backend_class
 from hal.samples import DriveLimits
-from tests.doubles import StepClock
+from tests.doubles import FakeAxes, StepClock
 
 GEOMETRY = DiffDriveGeometry(left_node=3, right_node=4, wheel_radius_m=0.08, track_width_m=0.4)
 LIMITS = DriveLimits(max_v_mps=0.8, max_omega_radps=1.5, robot_radius_m=0.25)
 _channels = itertools.count()
-
-
-class FakeAxes:
-    """Two ODrive axes on the bus: they take the drive's commands and, on `run`, turn at the
-    commanded speed and broadcast their encoder estimates every `period_s`."""
-
-    def __init__(self, channel: str, geometry: DiffDriveGeometry) -> None:
-        self.bus = can.Bus(channel, interface="virtual")
-        self.nodes = (geometry.left_node, geometry.right_node)
-        self.turns = {n: 0.0 for n in self.nodes}
-        self.velocity = {n: 0.0 for n in self.nodes}
-        self.state = {n: AXIS_STATE_IDLE for n in self.nodes}
-        self.control_mode = {n: None for n in self.nodes}
-
-    def take_commands(self) -> None:
-        while (msg := self.bus.recv(timeout=0.0)) is not None:
-            node, command = msg.arbitration_id >> 5, msg.arbitration_id & 0x1F
-            if node not in self.nodes:
-                continue
-            if command == SET_INPUT_VEL:
-                self.velocity[node] = struct.unpack("<ff", bytes(msg.data))[0]
-            elif command == SET_AXIS_STATE:
-                self.state[node] = struct.unpack("<I", bytes(msg.data))[0]
-            elif command == SET_CONTROLLER_MODE:
-                self.control_mode[node] = struct.unpack("<II", bytes(msg.data))[0]
-
-    def run(self, seconds: float, period_s: float = 0.01) -> None:
-        self.take_commands()
-        for _ in range(round(seconds / period_s)):
-            for n in self.nodes:
-                if self.state[n] == AXIS_STATE_CLOSED_LOOP_CONTROL:
-                    self.turns[n] += self.velocity[n] * period_s
-                    self.bus.send(encoder_estimates(n, self.turns[n], self.velocity[n]))
-                else:
-                    self.bus.send(encoder_estimates(n, self.turns[n], 0.0))
 
 
 @pytest.fixture

@@ -342,3 +342,29 @@ def test_free_running_driver_stamps_revolutions_with_the_clock_on_arrival(world)
 def test_registry_builds_the_rplidar_backend_by_name():
     from hal.registry import backend_class
     assert backend_class("lidar", "rplidar") is RplidarLidar
+
+
+def test_a_configured_rplidar_is_built_on_the_robots_clock_and_closed_with_the_robot(world):
+    from hal.config import BuildContext, ConfigError
+    from hal.registry import build_backend, check_backend
+    clock = StepClock()
+    clock.t_us = 77_000
+    with RplidarEmulator(world, 0) as emu:
+        settings = check_backend("lidar", "rplidar", {"port": emu.path, "range_max_m": world.params.lidar_range_m})
+        with pytest.raises(ConfigError, match="needs the robot's clock"):
+            build_backend("lidar", "rplidar", settings, BuildContext(0))
+        ctx = BuildContext(0)
+        ctx.clock = clock
+        lidar = build_backend("lidar", "rplidar", settings, ctx)
+        try:
+            assert isinstance(lidar, RplidarLidar) and lidar.info is not None
+            emu.advance_to(world.now_us)
+            deadline = time.monotonic() + 2.0
+            scan = lidar.latest_scan()
+            while scan is None and time.monotonic() < deadline:
+                time.sleep(0.005)
+                scan = lidar.latest_scan()
+            assert scan is not None and scan.stamp_us == 77_000 and scan.range_max_m == world.params.lidar_range_m
+        finally:
+            assert ctx.close() == []
+        assert lidar._closed

@@ -5,13 +5,20 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from hal.config import BuildContext, Setting
 from hal.samples import SHARED_FRAME, OdometrySample
+from hal.sim.realtime_world import RESOURCE, ROBOT_INDEX, world_of
 from world_sim.world import World
 
 FRAMES = ("shared", "own")
 
 
 class SimOdometry:
+    # Built from configuration (hal.config): robot ROBOT_INDEX of the configuration's [world].
+    SETTINGS = (Setting("frame", "text", "the odometry's frame: the team's shared one, or the robot's own "
+                        "(origin at its start, facing +x)", default="shared", choices=FRAMES),)
+    RESOURCES = (RESOURCE,)
+
     def __init__(self, world: World, robot_index: int, frame: str = "shared") -> None:
         """frame: "shared" (the mission frame every robot's start pose was measured in) or
         "own" (the robot knows only that it started at its own origin, facing +x)."""
@@ -22,6 +29,10 @@ class SimOdometry:
         self._index = robot_index
         self._origin = (start.x_m, start.y_m, start.yaw_rad) if frame == "own" else None
         self.frame_id = SHARED_FRAME if frame == "shared" else f"robot{robot_index}"
+
+    @classmethod
+    def from_config(cls, ctx: BuildContext, frame: str) -> SimOdometry:
+        return cls(world_of(ctx), ROBOT_INDEX, frame=frame)
 
     def read(self) -> OdometrySample:
         s = self._world.odometry_sample(self._index)

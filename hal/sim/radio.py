@@ -16,16 +16,30 @@ from __future__ import annotations
 
 from typing import Callable, Sequence
 
+from hal.config import BuildContext, ConfigError
 from hal.interfaces import Clock
 from hal.samples import RadioEvent
+from hal.sim.realtime_world import RESOURCE
 from radio_sim.channel import Channel
 
 
 class SimRadioModem:
+    # Built from configuration (hal.config): node robot_id on the channel of the
+    # configuration's [world], on the robot's radio profile, stamped by the robot's clock.
+    SETTINGS = ()
+    RESOURCES = (RESOURCE,)
+
     def __init__(self, channel: Channel, node_id: int, clock: Clock) -> None:
         self.channel = channel
         self.node_id = int(node_id)
         self.clock = clock
+
+    @classmethod
+    def from_config(cls, ctx: BuildContext) -> SimRadioModem:
+        if ctx.radio_profile is None or ctx.clock is None:
+            raise ConfigError(None, "a simulated radio needs the robot's radio profile and clock")
+        channel = ctx.resource(RESOURCE).channel(ctx.radio_profile, ctx.robot_id)
+        return cls(channel, ctx.robot_id, ctx.clock)
 
     def transmit(self, payload: bytes) -> bool:
         return self.channel.transmit(self.node_id, payload, self.clock.now_us()) is not None

@@ -119,8 +119,8 @@ class RplidarEmulator:
             self.motor_pwm = 0
             self._port.write(RESET_BANNER)
         elif req.cmd in (P.CMD_SCAN, P.CMD_FORCE_SCAN):
+            self.scanning = True           # before the answer: a driver that has it sees a scanning device
             self._port.write(P.descriptor(P.ANS_TYPE_MEASUREMENT))
-            self.scanning = True
         elif req.cmd == P.CMD_GET_INFO:
             self._port.write(P.descriptor(P.ANS_TYPE_DEVINFO) + self.info.encode())
         elif req.cmd == P.CMD_GET_HEALTH:

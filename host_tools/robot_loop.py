@@ -1,0 +1,173 @@
+"""The real-time tick loop of `lorascout robot`: the firmware on the wall clock.
+
+Every tick period (the fastest task's period, 50 ms) the loop sleeps until the tick is due,
+moves what follows the wall clock (a simulated world run in real time) to now, and runs the
+firmware's due tasks. Ticks keep their grid: a tick that ends after the next one was due
+starts the next one at once, and skips the slots that passed entirely (counted), as the
+scheduler skips a late task's missed periods.
+
+Every task run is timed on the wall clock and compared with the task's time budget
+(firmware.scheduler.Task.time_budget_us: its period, unless the task table declares less);
+a run over budget is an overrun. The whole tick is compared with the tick period the same
+way. A log line every `log_interval_s` gives the counts (a warning when something overran
+since the line before); the run's summary gives them per task.
+
+The loop ends when the robot's mission is complete and no teammate it heard of is still
+exploring (a finished robot stays on the air for them, relaying and answering, until they
+finish or fall silent), when `max_s` has passed, or when `should_stop()` names a reason (a
+signal). It never stops the drive itself: its caller does, whatever ended the loop.
+"""
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from firmware.agent import ExplorerAgent
+
+log = logging.getLogger("lorascout.robot")
+
+
+class WallClock(Protocol):
+    def now_us(self) -> int: ...
+
+    def sleep_until_us(self, t_us: int) -> None: ...
+
+
+@dataclass
+class RunTimes:
+    """How long the runs of one task (or whole ticks) took, against the budget."""
+    budget_us: int
+    runs: int = 0
+    overruns: int = 0
+    total_us: int = 0
+    max_us: int = 0
+
+    def add(self, took_us: int) -> bool:
+        """Count one run; True if it overran the budget."""
+        self.runs += 1
+        self.total_us += took_us
+        self.max_us = max(self.max_us, took_us)
+        over = took_us > self.budget_us
+        self.overruns += over
+        return over
+
+    def to_json(self) -> dict:
+        return {"budget_ms": self.budget_us / 1e3, "runs": self.runs, "overruns": self.overruns,
+                "mean_ms": round(self.total_us / self.runs / 1e3, 3) if self.runs else None,
+                "max_ms": self.max_us / 1e3}
+
+
+class OverrunProfiler:
+    """firmware.scheduler.TaskProfiler on the wall clock: times each task run and counts
+    the runs over the task's budget. Tasks run one at a time, never nested."""
+
+    def __init__(self, clock: WallClock, budgets_us: Mapping[str, int]) -> None:
+        self._clock = clock
+        self.tasks = {name: RunTimes(budget) for name, budget in budgets_us.items()}
+        self._started_us = 0
+
+    def enter(self, task: str) -> None:
+        self._started_us = self._clock.now_us()
+
+    def leave(self, task: str) -> None:
+        took_us = self._clock.now_us() - self._started_us
+        times = self.tasks[task]
+        if times.add(took_us):
+            log.debug("task %s took %.1f ms, over its budget of %.1f ms", task, took_us / 1e3, times.budget_us / 1e3)
+
+
+@dataclass
+class LoopResult:
+    termination: str = "running"   # "complete", "time_limit", or what should_stop() said ("SIGTERM")
+    wall_s: float = 0.0
+    ticks: int = 0
+    ticks_skipped: int = 0         # tick slots that passed while the loop was behind
+    tick: RunTimes = field(default_factory=lambda: RunTimes(0))    # whole ticks against the tick period
+    tasks: dict[str, RunTimes] = field(default_factory=dict)
+
+    def overruns(self) -> int:
+        return self.tick.overruns + sum(t.overruns for t in self.tasks.values())
+
+    def to_json(self) -> dict:
+        return {"termination": self.termination, "wall_s": round(self.wall_s, 3), "ticks": self.ticks,
+                "ticks_skipped": self.ticks_skipped, "tick": self.tick.to_json(),
+                "tasks": {name: t.to_json() for name, t in self.tasks.items()}}
+
+
+class RobotLoop:
+    """Ticks a set-up agent on `clock`; `followers` are called with the time before every
+    tick. `result` holds the counts so far, also when `run` ends by an exception."""
+
+    def __init__(self, agent: ExplorerAgent, clock: WallClock, followers: Sequence[Callable[[int], None]] = (),
+                 log_interval_s: float = 10.0) -> None:
+        self.agent = agent
+        self.clock = clock
+        self.followers = tuple(followers)
+        self.tick_us = agent.rates.tick_period_us
+        self.log_every_us = round(log_interval_s * 1e6)
+        self.profiler = OverrunProfiler(clock, {t.name: t.time_budget_us for t in agent.scheduler.tasks})
+        self.result = LoopResult(tick=RunTimes(self.tick_us), tasks=self.profiler.tasks)
+        self._start_us = 0
+        self._overruns_logged = 0
+
+    def run(self, should_stop: Callable[[], str | None], max_s: float | None = None) -> LoopResult:
+        """Tick until the mission is complete, max_s has passed or should_stop() gives a
+        reason; the result's termination says which."""
+        clock, result = self.clock, self.result
+        self._start_us = next_tick_us = clock.now_us()
+        next_log_us = self._start_us + self.log_every_us
+        try:
+            while not (reason := self._reason_to_stop(should_stop, max_s)):
+                clock.sleep_until_us(next_tick_us)
+                if reason := should_stop():          # asked while the loop slept
+                    break
+                self._tick()
+                next_tick_us, skipped = next_tick(next_tick_us, clock.now_us(), self.tick_us)
+                result.ticks_skipped += skipped
+                if clock.now_us() >= next_log_us:
+                    self._log_progress()
+                    next_log_us += ((clock.now_us() - next_log_us) // self.log_every_us + 1) * self.log_every_us
+            result.termination = reason
+        finally:
+            result.wall_s = (clock.now_us() - self._start_us) / 1e6
+        return result
+
+    def _tick(self) -> None:
+        started_us = self.clock.now_us()
+        for follow in self.followers:
+            follow(started_us)
+        self.agent.tick(self.profiler)
+        self.result.ticks += 1
+        self.result.tick.add(self.clock.now_us() - started_us)
+
+    def _reason_to_stop(self, should_stop: Callable[[], str | None], max_s: float | None) -> str | None:
+        agent = self.agent
+        if reason := should_stop():
+            return reason
+        if agent.done and not agent.roster.any_active(agent.hal.clock.now_us()):
+            return "complete"
+        if max_s is not None and self.clock.now_us() - self._start_us >= max_s * 1e6:
+            return "time_limit"
+        return None
+
+    def _log_progress(self) -> None:
+        """One line of counts; a warning if something overran since the line before."""
+        result = self.result
+        overruns = result.overruns()
+        per_task = ", ".join(f"{name} {t.overruns}/{t.runs}" for name, t in result.tasks.items())
+        level = logging.WARNING if overruns > self._overruns_logged else logging.INFO
+        log.log(level, "%.1f s, %s: %d ticks (%d over %.0f ms, %d skipped); task overruns %s; %d scans",
+                (self.clock.now_us() - self._start_us) / 1e6, self.agent.status, result.ticks, result.tick.overruns,
+                self.tick_us / 1e3, result.ticks_skipped, per_task, self.agent.scans)
+        self._overruns_logged = overruns
+
+
+def next_tick(due_us: int, now_us: int, tick_us: int) -> tuple[int, int]:
+    """(when the next tick is due, tick slots skipped) after the tick due at `due_us` ended
+    at `now_us`: the slot after it or, if the loop is later than that, the latest slot that
+    has begun (the slots before it are skipped)."""
+    next_us = due_us + tick_us
+    skipped = max(0, (now_us - next_us) // tick_us)
+    return next_us + skipped * tick_us, skipped
