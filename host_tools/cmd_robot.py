@@ -19,8 +19,10 @@ import signal
 import sys
 import textwrap
 
+from firmware.warm_up import warm_up
 from hal.monotonic_clock import SHARED_KEY, MonotonicClock
 from host_tools.options import JSON, SIM_S_MAX, Opt, add_options
+from host_tools.overrides import params_with
 from host_tools.robot_config import (DeviceError, Robot, RobotConfig, RobotConfigError, config_help,
                                      load_robot_config, open_robot)
 from host_tools.robot_loop import LoopResult, RobotLoop
@@ -120,6 +122,8 @@ def _configure_logging(level_name: str) -> None:
 
 def _run(cfg: RobotConfig, args: argparse.Namespace, signals: StopSignals) -> int:
     try:
+        log.info("compiling the firmware's kernels")
+        warm_up(params_with(cfg.overrides))
         robot = open_robot(cfg, on_ready=signals.ready)
     except StopNow as stop:
         _print_report({**_identity(cfg), "termination": stop.signal_name, "started": False}, args.json)

@@ -280,3 +280,30 @@ def test_parallel_kernels_give_the_same_bits_on_one_thread_and_on_all(scan, stat
         pytest.skip("NUMBA_NUM_THREADS is 1: nothing to compare (tests/conftest.py asks for two unless it is set)")
     for one, every in zip(_with_threads(1, run), _with_threads(numba.config.NUMBA_NUM_THREADS, run)):
         np.testing.assert_array_equal(one, every)
+
+
+WARM_UP_CHECK = """
+import importlib, pkgutil, firmware
+from numba.core.registry import CPUDispatcher
+modules = [importlib.import_module(m.name) for m in pkgutil.walk_packages(firmware.__path__, 'firmware.')]
+def compiled():
+    return {f'{m.__name__}.{k}': len(v.signatures) for m in modules for k, v in vars(m).items()
+            if isinstance(v, CPUDispatcher)}
+from firmware.params import ExplorationParams
+from firmware.warm_up import warm_up
+warm_up(ExplorationParams())
+before = compiled()
+from host_tools.mission import MissionConfig, run_mission
+run_mission(MissionConfig(map_spec='cave:1:30x30', max_sim_s=60, strategy='minpos', robots=2))
+print({k: (before.get(k), n) for k, n in compiled().items() if before.get(k) != n})
+"""
+
+
+def test_warm_up_compiles_every_kernel_a_mission_calls():
+    """A robot's tick loop must not stall on a first call that compiles (lorascout robot)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", WARM_UP_CHECK], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "{}", f"compiled only after warm_up: {out.stdout}"

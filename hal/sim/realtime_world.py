@@ -26,6 +26,7 @@ from world_sim.world import World, WorldParams
 RESOURCE = "sim-world"            # the BuildContext resource name the sim backends ask for
 ROBOT_INDEX = 0                   # the one robot of this world
 MAX_STEP_US = 50_000              # the lockstep simulator's tick
+WARM_UP_STEP_US = 200_000         # long enough for every simulated sensor to fire once
 
 
 def _check_map(spec: str) -> None:
@@ -64,6 +65,13 @@ def _check_start(map_spec: str, x_m: float, y_m: float) -> None:
         raise ConfigError("start_x_m", f"({x_m:g}, {y_m:g}) m is not on a free cell of map {label!r}")
 
 
+def warm_up_world(settings: Mapping[str, Any]) -> None:
+    """Compile the world's kernels (motion, collision, LiDAR) before the wall clock runs:
+    a throwaway copy of the world takes a step, so the robot's first ticks do not stall on
+    the compiler."""
+    RealTimeWorld(**settings).world.step(WARM_UP_STEP_US)
+
+
 class RealTimeWorld:
     """A World of one robot, built from the [world] settings (the keys are its arguments),
     that follows the wall clock and owns the radio channel around the robot."""
@@ -86,6 +94,7 @@ class RealTimeWorld:
         settings (checked_world_settings): it follows the wall clock and reports coverage in
         the run's summary. ValueError if the robot's body does not fit at its start."""
         sim = cls(**settings)
+        warm_up_world(settings)
         ctx.wall_clock_followers.append(sim.advance_to)
         ctx.reports["world"] = sim.report
         return sim

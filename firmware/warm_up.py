@@ -1,0 +1,45 @@
+"""Compile the firmware's numba kernels before a robot's tick loop starts.
+
+The kernels compile on their first call (or load from numba's cache), which on a fresh
+install takes seconds: inside the first lidar and planning tasks that would be a start-up
+stall of the robot's real-time loop. warm_up runs one scan fold and one planning cycle's
+map work on a small synthetic room, open on one side, with the same types the firmware uses.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from firmware import kernels
+from firmware.params import ExplorationParams
+from firmware.services.grid_paths import GridPaths
+from firmware.services.local_map import LocalMap
+from firmware.services.planner import count_frontiers
+from firmware.services.waypoints import WaypointSet
+
+_ROOM_RADIUS_M = 3.0
+_BEAMS = 360
+
+
+def warm_up(params: ExplorationParams) -> None:
+    """Run every kernel of a lidar and a planning task once (on a small window)."""
+    small = dataclasses.replace(params, d_local_m=min(params.d_local_m, 2 * _ROOM_RADIUS_M + 2.0),
+                                recenter_distance_m=min(params.recenter_distance_m, 1.0))
+    local_map = LocalMap(small, 0.0, 0.0)
+    ranges_m = np.full(_BEAMS, _ROOM_RADIUS_M, np.float32)
+    ranges_m[:_BEAMS // 6] = 0.0        # a sector without returns: unknown, so there are waypoints
+    local_map.integrate_scan(0.0, 0.0, 0.0, -np.pi, 2 * np.pi / _BEAMS, ranges_m, 10.0)
+    for tight in (False, True):
+        layers = local_map.layers(tight=tight)
+        i, j = local_map.cell_of(0.0, 0.0)
+        paths = GridPaths(layers.traversable, layers.cell_cost, i, j)
+        paths.settle_first(np.array([i]), np.array([j + 5]))
+        paths.settle_below(10.0)
+        paths.path(i, j + 10)
+        WaypointSet(small).update(local_map, layers.sight, paths.reachable)
+        count_frontiers(layers.sight, paths.reachable, small)
+    # A teammate's view, as Bayer & Faigl's presence rule casts it.
+    ij, inside = local_map.cells_of(np.array([[1.0, 0.0]]))
+    kernels.mark_visible(layers.sight, ij[inside, 0], ij[inside, 1], small.team_view_rays,
+                         small.d_cam_m / small.resolution_m, np.zeros(layers.sight.shape, bool))
