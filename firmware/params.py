@@ -70,6 +70,12 @@ class ExplorationParams:
                                'deadlock breaker: no teammate stood this close to a waypoint it takes back')
     revive_min_bit: float = _p(4000.0, 'bit', 0.0, 1e9,
                                'deadlock breaker: information a waypoint must hold to be taken back')
+    # A frontier the body cannot reach is reported (termination complete_with_unreachable_
+    # frontiers) when this much unknown is in view from it: 10 e_min, about 3.5 m2, a room
+    # behind a door. Less is a pocket too small to matter: under a desk, a fan of free cells
+    # drawn through a chink in a wall.
+    report_unreachable_bit: float = _p(900.0, 'bit', 0.0, 1e9,
+                                       'a frontier the body cannot reach is reported if this much is unseen beyond it')
     # Robot body and navigation.
     robot_radius_m: float = _p(0.25, 'm', 0.05, 5.0, 'robot body radius')
     # Clearance as a cost (nav2's inflation layer: lethal, inscribed, decaying). The scan

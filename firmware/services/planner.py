@@ -200,8 +200,8 @@ class Planner:
 @dataclass(frozen=True)
 class FrontierCount:
     """Frontiers (free cells bordering unknown ones, 8-connected groups of at least
-    MIN_FRONTIER_CELLS) that no grid path reaches and that hide at least e_min of unknown,
-    and the area of their cells."""
+    MIN_FRONTIER_CELLS) that no grid path reaches and that hide at least
+    report_unreachable_bit of unknown, and the area of their cells."""
     unreachable: int
     unreachable_area_m2: float
 
@@ -216,9 +216,9 @@ REACH_CELLS = 4
 
 def count_frontiers(sight: np.ndarray, reachable: np.ndarray, params: ExplorationParams) -> FrontierCount:
     """The frontiers left in the local map that the body cannot get to and that hide
-    something: at least e_min (min_cluster_entropy_bit) of unknown in view from the
-    frontier's middle, so a pocket too small to matter is not reported, a room behind a
-    door too narrow for the body is. They are read from the sight layer (MapLayers.sight),
+    something: at least report_unreachable_bit of unknown in view from the frontier's
+    middle, so a pocket too small to matter is not reported, a room behind a door too
+    narrow for the body is. They are read from the sight layer (MapLayers.sight),
     where unknown cells touching a wall count as wall: the unknown sliver at a wall's foot
     that no beam grazed is no way on. A frontier counts as reached when one of its cells
     lies within REACH_CELLS of a cell a grid path reaches (the body's edge, where it can look
@@ -241,7 +241,7 @@ def count_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploratio
     middles = np.array([_middle_cell(labels, k) for k in left], np.int64).reshape(-1, 2)
     unseen_cells = kernels.observable_unknown(sight, middles[:, 0], middles[:, 1], params.info_rays,
                                               params.d_cam_m / params.resolution_m)
-    hiding = left[unseen_cells * params.entropy_per_cell_bit >= params.min_cluster_entropy_bit]
+    hiding = left[unseen_cells * params.entropy_per_cell_bit >= params.report_unreachable_bit]
     return FrontierCount(int(len(hiding)), float(sizes[hiding].sum()) * params.resolution_m ** 2)
 
 
