@@ -78,16 +78,13 @@ class ExplorationParams:
                                        'a frontier the body cannot reach is reported if this much is unseen beyond it')
     # Robot body and navigation.
     robot_radius_m: float = _p(0.25, 'm', 0.05, 5.0, 'robot body radius')
-    # Clearance as a cost (nav2's inflation layer: lethal, inscribed, decaying). The scan
-    # fill marks the cell half a cell beyond each hit, so an occupied cell holds a wall face
-    # between its centre and one cell nearer the robot, half a cell on average. A cell is
-    # lethal only if the body plus lethal_tolerance_m fits at none of its points even with
-    # every face at its cell's centre; inscribed, if it fits only so and not with the faces
-    # where they are expected (LocalMap.layers).
+    # Clearance as a cost (nav2's inflation layer: lethal, then decaying). The scan fill marks
+    # the cell half a cell beyond each hit, so an occupied cell holds a wall face between its
+    # centre and one cell nearer the robot, half a cell on average. A cell is lethal only if
+    # the body plus lethal_tolerance_m fits at none of its points (centre, side midpoints,
+    # corners) with the faces where expected (LocalMap.layers); a retry after a recovery
+    # takes no tolerance and the faces at the cells' centres.
     lethal_tolerance_m: float = _p(0.02, 'm', 0.0, 0.03, 'the body plus this must fit where a path goes')
-    inscribed_cost: float = _p(10.0, '1', 1.0, 1e6,
-                               "cost factor of a cell the body fits in only if the walls are where they "
-                               "might be, not where they are expected")
     inflation_radius_m: float = _p(1.0, 'm', 0.0, 50.0, 'paths pay extra closer than this to walls or unknown')
     inflation_cost_weight: float = _p(2.0, '1', 0.0, 1000.0, 'extra cost factor right at the body, decaying outwards')
     inflation_decay_per_m: float = _p(3.0, '1/m', 0.0, 100.0, "how fast that extra cost decays with distance")
@@ -106,7 +103,8 @@ class ExplorationParams:
     min_speed_mps: float = _p(0.1, 'm/s', 0.01, 10.0, 'the slowest the robot drives a path')
     # Recovery (services.recovery): before a target is struck or dropped, back off this far
     # if the LiDAR shows room behind, turn once on the spot at this rate, then retry on a
-    # tighter, slower path (no lethal tolerance, no inscribed cost, min_speed_mps) this long.
+    # tighter, slower path (no lethal tolerance, wall faces at their cells' centres,
+    # min_speed_mps) this long.
     recovery_back_off_m: float = _p(0.3, 'm', 0.0, 5.0, 'a recovery backs off this far if there is room behind')
     recovery_turn_radps: float = _p(0.8, 'rad/s', 0.05, 10.0, 'a recovery turns once on the spot at this rate')
     recovery_retry_s: float = _p(20.0, 's', 0.0, 3600.0, 'after a recovery, plans are tight and slow for this long')

@@ -52,6 +52,9 @@ def test_fast_replans_strike_an_unreachable_target_once_per_planning_period():
     ex.targets.recovery_started()
     plan = ex.plan(*ROBOT_XY, 3 * SECOND_US)
     assert not _in_w(ex) and ex.stat("targets_unreachable") == 1
+    # Nothing left it can reach, but a frontier beyond the wall: one tight retry looks for a way.
+    assert plan.recover and not plan.done
+    plan = ex.plan(*ROBOT_XY, 4 * SECOND_US)
     assert plan.done, "a target unreachable for three planning periods and after a recovery is dropped for good"
 
 

@@ -126,7 +126,7 @@ class MapLayers:
     state: np.ndarray          # UNKNOWN / FREE / OCCUPIED per cell
     sight: np.ndarray          # state with unknown cells next to walls closed, for ray casting
     traversable: np.ndarray    # bool: known free, and the body fits somewhere in the cell
-    cell_cost: np.ndarray      # >= 1: inscribed cells, and a cost decaying away from walls and unknown
+    cell_cost: np.ndarray      # >= 1: a cost decaying away from walls and unknown
     clearance_m: np.ndarray    # float32: room from the best point of the cell to the expected wall faces
     standing: np.ndarray       # int8: index into kernels.SUBCELL_OFFSETS of the cell's best point
 
@@ -137,8 +137,8 @@ class MapLayers:
 
 
 # The scan fill marks the cell half a cell beyond a hit, so a wall face lies between an
-# occupied cell's centre and its near edge: a square of this half side (in cells) is where
-# faces are expected; the centre alone is the most room the robot can hope for.
+# occupied cell's centre and one cell nearer the robot: a square of this half side (in
+# cells) is where faces are expected; the centre alone is the most room there can be.
 EXPECTED_FACE_HALF_SIDE_CELLS = 0.5
 # Chamfer distances run long by at most 8.3 % (kernels.chamfer_distance); a cell's points lie
 # within sqrt(2)/2 cells of its centre.
@@ -290,7 +290,8 @@ class LocalMap:
 
     # --- derived layers -------------------------------------------------------------
     def layers(self, tight: bool = False) -> MapLayers:
-        """tight: a retry after a recovery, with no lethal tolerance and no inscribed cost."""
+        """tight: a retry after a recovery, with no lethal tolerance and the wall faces at
+        their cells' centres (the most room there can be)."""
         p = self.p
         state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
         for bx, by in self.bumps:
@@ -314,18 +315,18 @@ class LocalMap:
             box = (slice(i0, i1), slice(j0, j1))
             crop = state[box]
             d_occ_cells, d_block_cells = kernels.chamfer_distances(crop)
-            fit = self._body_fit(crop, d_occ_cells, body_m / p.resolution_m, 1.0 if tight else p.inscribed_cost)
-            traversable[box], cell_cost[box], clearance_m[box], standing[box] = fit
-            cell_cost[box] *= 1.0 + p.inflation_cost_weight * inflation(
+            fit = self._body_fit(crop, d_occ_cells, body_m / p.resolution_m, tight)
+            traversable[box], clearance_m[box], standing[box] = fit
+            cell_cost[box] = 1.0 + p.inflation_cost_weight * inflation(
                 d_block_cells * p.resolution_m - body_m, p.inflation_radius_m - body_m, p.inflation_decay_per_m)
         return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable, cell_cost=cell_cost,
                          clearance_m=clearance_m, standing=standing)
 
-    def _body_fit(self, crop: np.ndarray, d_occ_cells: np.ndarray, body_cells: float, inscribed_cost: float):
-        """(traversable, cost factor, clearance in m, best point) of every cell of crop.
-        Cells far from walls fit the body at their centre; cells near them are settled by
-        kernels.best_standing_points, once with the faces where expected and once with them
-        at the occupied cells' centres (lethal only if the body fits at no point even so)."""
+    def _body_fit(self, crop: np.ndarray, d_occ_cells: np.ndarray, body_cells: float, tight: bool):
+        """(traversable, clearance in m, best point) of every cell of crop. Cells far from
+        walls fit the body at their centre; cells near them are settled by
+        kernels.best_standing_points with the wall faces where expected, or (tight) with
+        them at the occupied cells' centres, the most room there can be."""
         res = self.p.resolution_m
         h = EXPECTED_FACE_HALF_SIDE_CELLS
         free = crop == kernels.FREE
@@ -336,17 +337,13 @@ class LocalMap:
         hopeless = d_occ_cells + _HALF_DIAGONAL < body_cells
         band_i, band_j = np.nonzero(free & ~sure & ~hopeless)
         traversable = sure.copy()
-        cost = np.ones(crop.shape, np.float64)
         standing = np.zeros(crop.shape, np.int8)
         if len(band_i):
             occupied = crop == kernels.OCCUPIED
             reach = _CHAMFER_LONG * (body_cells + h * math.sqrt(2.0)) + 2.0
-            expected, k_expected = kernels.best_standing_points(occupied, band_i, band_j, h, reach)
-            hopeful, k_hopeful = kernels.best_standing_points(occupied, band_i, band_j, 0.0, reach)
-            fits = expected >= body_cells
-            might_fit = hopeful >= body_cells
-            traversable[band_i, band_j] = might_fit
-            cost[band_i[might_fit & ~fits], band_j[might_fit & ~fits]] = inscribed_cost
-            standing[band_i, band_j] = np.where(fits, k_expected, k_hopeful)
-            clearance_cells[band_i, band_j] = np.where(fits, expected, hopeful - h)
-        return traversable, cost, (clearance_cells * res).astype(np.float32), standing
+            face = 0.0 if tight else h
+            room, best = kernels.best_standing_points(occupied, band_i, band_j, face, reach)
+            traversable[band_i, band_j] = room >= body_cells
+            standing[band_i, band_j] = best
+            clearance_cells[band_i, band_j] = room - (h - face)
+        return traversable, (clearance_cells * res).astype(np.float32), standing

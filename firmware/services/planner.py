@@ -53,9 +53,10 @@ class Planner:
         self.blocked_edges: set[tuple[tuple[int, int], tuple[int, int]]] = set()
         # What was left when the robot had nothing more to explore (the last plan's).
         self.frontiers = FrontierCount(0, 0.0)
-        # Until then plans are tight (no lethal tolerance, no inscribed cost) and slow: the
+        # Until then plans are tight (no lethal tolerance, faces at their cells' centres) and slow: the
         # retry after a recovery (the agent sets it when one ends).
         self.tight_until_us = -1
+        self._tried_tight: set[tuple[int, int]] = set()   # frontier cells (global) a tight retry was for
 
     def _path(self, cells: list[tuple[int, int]], layers) -> tuple[np.ndarray, np.ndarray]:
         """World points through the cells, each at the cell's best point (its centre unless a
@@ -137,8 +138,22 @@ class Planner:
             self.scheme.filter_waypoints(dataclasses.replace(view, closing=True))
             if last_look in self.waypoints.items:
                 return Plan(None, np.zeros((0, 2)), False)  # the next cycle heads there
-        self.frontiers = count_frontiers(layers.sight, reachable, p)
+        self.frontiers = count_frontiers(layers.sight, reachable, p, self.map.row0, self.map.col0)
+        if not tight and self._untried(self.frontiers.cells):
+            # Frontiers the body cannot reach on the map's expected walls: recover and look
+            # for a way on tight paths before saying so.
+            self._tried_tight |= set(self.frontiers.cells)
+            return Plan(None, np.zeros((0, 2)), False, recover=True)
         return Plan(None, np.zeros((0, 2)), True)
+
+    def _untried(self, cells: tuple[tuple[int, int], ...]) -> bool:
+        """Is any of these frontier cells (global) farther than ban_radius_m from every one a
+        tight retry was for? (A frontier's middle shifts a little as the map fills in.)"""
+        if not self._tried_tight:
+            return bool(cells)
+        tried = np.array(sorted(self._tried_tight), np.float64)
+        r_cells = self.p.ban_radius_m / self.p.resolution_m
+        return any(((tried - c) ** 2).sum(axis=1).min() > r_cells ** 2 for c in cells)
 
     def _place_in_window(self, candidates: list[Candidate], paths: GridPaths) -> None:
         """Candidates a grid path in the local map reaches are costed by that path, the
@@ -204,6 +219,7 @@ class FrontierCount:
     report_unreachable_bit of unknown, and the area of their cells."""
     unreachable: int
     unreachable_area_m2: float
+    cells: tuple[tuple[int, int], ...] = ()     # each frontier's middle cell, global (row, col)
 
 
 # A group of fewer frontier cells is narrower than the body (0.5 m at 0.1 m cells): a speck
@@ -214,7 +230,8 @@ MIN_FRONTIER_CELLS = 5
 REACH_CELLS = 4
 
 
-def count_frontiers(sight: np.ndarray, reachable: np.ndarray, params: ExplorationParams) -> FrontierCount:
+def count_frontiers(sight: np.ndarray, reachable: np.ndarray, params: ExplorationParams,
+                    row0: int = 0, col0: int = 0) -> FrontierCount:
     """The frontiers left in the local map that the body cannot get to and that hide
     something: at least report_unreachable_bit of unknown in view from the frontier's
     middle, so a pocket too small to matter is not reported, a room behind a door too
@@ -222,7 +239,7 @@ def count_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploratio
     where unknown cells touching a wall count as wall: the unknown sliver at a wall's foot
     that no beam grazed is no way on. A frontier counts as reached when one of its cells
     lies within REACH_CELLS of a cell a grid path reaches (the body's edge, where it can look
-    into the unknown)."""
+    into the unknown). (row0, col0): the window's global cell, to name the frontiers' cells."""
     free = sight == kernels.FREE
     unknown = sight == kernels.UNKNOWN
     next_to_unknown = ndimage.binary_dilation(unknown, structure=np.ones((3, 3), bool))
@@ -242,7 +259,9 @@ def count_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploratio
     unseen_cells = kernels.observable_unknown(sight, middles[:, 0], middles[:, 1], params.info_rays,
                                               params.d_cam_m / params.resolution_m)
     hiding = left[unseen_cells * params.entropy_per_cell_bit >= params.report_unreachable_bit]
-    return FrontierCount(int(len(hiding)), float(sizes[hiding].sum()) * params.resolution_m ** 2)
+    middle_of = dict(zip(left.tolist(), map(tuple, middles.tolist())))
+    return FrontierCount(int(len(hiding)), float(sizes[hiding].sum()) * params.resolution_m ** 2,
+                         tuple((row0 + middle_of[k][0], col0 + middle_of[k][1]) for k in hiding.tolist()))
 
 
 def _middle_cell(labels: np.ndarray, k: int) -> tuple[int, int]:
