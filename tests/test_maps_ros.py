@@ -20,7 +20,7 @@ from world_sim.map_spec import (
     staging_poses,
 )
 from world_sim.occupancy_map import OccupancyMap
-from world_sim.ros_map import MapFormatError, load_ros_map, reachable_area_m2, reachable_free
+from world_sim.ros_map import MapFormatError, body_fits, load_ros_map, reachable_area_m2, reachable_free
 
 DATA = Path(__file__).parent / "data"
 SHARED_MAPS = Path(os.environ.get("LORASCOUT_MAPS", Path(__file__).resolve().parents[2] / "shared" / "maps"))
@@ -513,3 +513,18 @@ def test_deeply_nested_yaml_is_an_error_not_a_crash(tmp_path):
     (tmp_path / "deep.yaml").write_text("image: " + "[" * 50_000 + "\n")
     with pytest.raises(MapFormatError, match="nested too deeply"):
         load_ros_map(tmp_path / "deep.yaml")
+
+
+@pytest.mark.parametrize("door_cells, passes", [(5, False), (6, True), (7, True)])
+def test_the_body_reaches_through_a_door_the_world_lets_it_through(door_cells, passes):
+    """A 0.5 m body (2.5 cells) fits a door of 6 cells at its middle, a cell edge, where the
+    world's collision test (walls as whole cells) leaves it 0.05 m each side; 5 cells touch."""
+    free = np.zeros((30, 40), bool)
+    free[1:29, 1:19] = True
+    free[1:29, 21:39] = True
+    top = 15 - door_cells // 2
+    free[top:top + door_cells, 19:21] = True
+    assert bool(body_fits(free, 2.5)[top:top + door_cells, 19:21].any()) == passes
+    occ = OccupancyMap(free=free, resolution_m=0.1, origin_x_m=0.0, origin_y_m=0.0, name="door")
+    reach = reachable_free(occ, (0.5, 1.5), connectivity=4, robot_radius_m=0.25)
+    assert bool(reach[:, 25:].any()) == passes           # beyond what the body sweeps from the door
