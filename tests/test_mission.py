@@ -46,7 +46,7 @@ def test_trajectory_digest_for_a_fixed_seed_is_pinned():
     assert r.trajectory_sha256 == PINNED_TRAJECTORY_SHA256
 
 
-PINNED_TRAJECTORY_SHA256 = "4275a4e5686c197e69901455224f468e876352d937cd2f8973b9013020696bad"
+PINNED_TRAJECTORY_SHA256 = "bdb6aee29866bc8d4cd3d00520ea24470ce3af9baf89827d978a8563528e623e"
 
 
 def test_robots_in_frames_of_their_own_explore_as_well_without_knowing_the_others_frames():
