@@ -201,6 +201,8 @@ class ExplorerAgent:
             self._task_planning(now_us)
             if self.done:
                 return
+        if now_us < self.planner.tight_until_us:
+            self.local_map.mark_passed(pose.x_m, pose.y_m)
         if not self.follower.active and now_us - self._last_plan_us >= self.MIN_REPLAN_US:
             # The path ran out before the next planning slot: plan now instead of idling.
             self._task_planning(now_us)

@@ -176,6 +176,10 @@ def close_wall_gaps(state: np.ndarray) -> np.ndarray:
     return out
 
 
+# Bounded memory for mark_passed: 10 cells a metre, so 2 km of tight passages.
+MAX_PASSED_CELLS = 20_000
+
+
 class LocalMap:
     MAX_BUMP_CELLS = 7 * 64
     def __init__(self, params: ExplorationParams, x_m: float, y_m: float) -> None:
@@ -185,6 +189,10 @@ class LocalMap:
         self.pager = TilePager()
         self.row0, self.col0 = self._anchor_for(x_m, y_m)
         self.bumps: list[tuple[float, float]] = []   # obstacles felt, not seen (mark_obstacle_ahead)
+        # Global cells the body's centre has been through where the map shows too little room
+        # (mark_passed): a gap the robot drove through is one it fits through.
+        self.passed: set[tuple[int, int]] = set()
+        self._last_passed: tuple[int, int] | None = None
 
     # --- geometry -------------------------------------------------------------------
     def _anchor_for(self, x_m: float, y_m: float) -> tuple[int, int]:
@@ -241,6 +249,19 @@ class LocalMap:
         for off in np.linspace(-0.6, 0.6, 7):
             self.bumps.append((x_m + distance_m * math.cos(yaw_rad + off), y_m + distance_m * math.sin(yaw_rad + off)))
         del self.bumps[:-self.MAX_BUMP_CELLS]  # bounded memory: the oldest are forgotten first
+
+    def mark_passed(self, x_m: float, y_m: float) -> None:
+        """The body's centre is here now, on a cell the map shows too narrow (a tight path
+        after a recovery): remember the cell, as a 4-connected chain with the last one
+        marked, so that later plans may route through the same gap."""
+        row = int(math.floor(y_m / self.p.resolution_m))
+        col = int(math.floor(x_m / self.p.resolution_m))
+        last = self._last_passed
+        if last is not None and abs(row - last[0]) == 1 and abs(col - last[1]) == 1:
+            self.passed.add((last[0], col))          # a diagonal step: keep the chain 4-connected
+        if len(self.passed) < MAX_PASSED_CELLS:
+            self.passed.add((row, col))
+        self._last_passed = (row, col)
 
     def _fill(self, px, py, bin0, binw, ranges, range_max, region, grid=None) -> None:
         """Fold a scan into `region` of the window, or of grid = (log-odds array, its global
@@ -317,10 +338,21 @@ class LocalMap:
             d_occ_cells, d_block_cells = kernels.chamfer_distances(crop)
             fit = self._body_fit(crop, d_occ_cells, body_m / p.resolution_m, tight)
             traversable[box], clearance_m[box], standing[box] = fit
+            self._open_passed(traversable, state)
             cell_cost[box] = 1.0 + p.inflation_cost_weight * inflation(
                 d_block_cells * p.resolution_m - body_m, p.inflation_radius_m - body_m, p.inflation_decay_per_m)
         return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable, cell_cost=cell_cost,
                          clearance_m=clearance_m, standing=standing)
+
+    def _open_passed(self, traversable: np.ndarray, state: np.ndarray) -> None:
+        """Cells the body has been through (mark_passed) are traversable while they read free."""
+        if not self.passed:
+            return
+        cells = np.array(list(self.passed), np.int64).reshape(-1, 2) - (self.row0, self.col0)
+        inside = (cells >= 0).all(axis=1) & (cells < self.n).all(axis=1)
+        i, j = cells[inside, 0], cells[inside, 1]
+        free = state[i, j] == kernels.FREE
+        traversable[i[free], j[free]] = True
 
     def _body_fit(self, crop: np.ndarray, d_occ_cells: np.ndarray, body_cells: float, tight: bool):
         """(traversable, clearance in m, best point) of every cell of crop. Cells far from
