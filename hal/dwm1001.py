@@ -33,12 +33,12 @@ import time
 from collections.abc import Mapping
 
 import serial
-import serial.threaded
 
 from hal import dwm1001_protocol as P
 from hal.config import BuildContext, ConfigError, Setting
 from hal.interfaces import Clock
 from hal.samples import UwbRange
+from hal.serial_reader import start_reader
 
 # Ranges nobody collected are dropped oldest first beyond this many (as the simulated world
 # keeps its measurement queues bounded).
@@ -77,17 +77,6 @@ def parse_peer_addresses(text: str) -> dict[int, int]:
 
 class Dwm1001Error(RuntimeError):
     """The module answered wrongly or not at all at start-up."""
-
-
-class _Bytes(serial.threaded.Protocol):
-    def __init__(self, ranger: Dwm1001Ranger):
-        self._ranger = ranger
-
-    def data_received(self, data: bytes) -> None:
-        self._ranger._on_bytes(data)
-
-    def connection_lost(self, exc) -> None:
-        self._ranger._on_connection_lost(exc)
 
 
 class Dwm1001Ranger:
@@ -148,8 +137,7 @@ class Dwm1001Ranger:
         except (serial.SerialException, ValueError) as e:
             raise Dwm1001Error(f"{url_or_path}: cannot open: {e}") from e
         self._ser.reset_input_buffer()
-        self._reader = serial.threaded.ReaderThread(self._ser, lambda: _Bytes(self))
-        self._reader.start()
+        self._reader = start_reader(self._ser, self._on_bytes, self._on_connection_lost)
         self._poller: threading.Thread | None = None
         try:
             self._start()

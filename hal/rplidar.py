@@ -45,12 +45,12 @@ import time
 
 import numpy as np
 import serial
-import serial.threaded
 
 from hal import rplidar_protocol as P
 from hal.config import BuildContext, ConfigError, Setting
 from hal.interfaces import Clock
 from hal.samples import LidarScan
+from hal.serial_reader import start_reader
 
 A1_RANGE_MAX_M = 12.0
 
@@ -133,17 +133,6 @@ class RevolutionAssembler:
                              ranges_m=ranges))
 
 
-class _Bytes(serial.threaded.Protocol):
-    def __init__(self, lidar: RplidarLidar):
-        self._lidar = lidar
-
-    def data_received(self, data: bytes) -> None:
-        self._lidar._on_bytes(data)
-
-    def connection_lost(self, exc) -> None:
-        self._lidar._on_connection_lost(exc)
-
-
 class RplidarLidar:
     """hal.interfaces.Lidar over the RPLIDAR serial protocol (standard SCAN)."""
 
@@ -199,8 +188,7 @@ class RplidarLidar:
         except (serial.SerialException, ValueError) as e:
             raise RplidarError(f"{url_or_path}: cannot open: {e}") from e
         self._ser.reset_input_buffer()
-        self._reader = serial.threaded.ReaderThread(self._ser, lambda: _Bytes(self))
-        self._reader.start()
+        self._reader = start_reader(self._ser, self._on_bytes, self._on_connection_lost)
         try:
             self._start(motor_pwm)
         except BaseException:

@@ -28,19 +28,16 @@ per-modem buffer until the pty takes it.
 """
 from __future__ import annotations
 
-import errno
 import os
 import select
-import termios
 import threading
-import tty
 from collections.abc import Callable, Sequence
 
 from hal import rn2483_protocol as P
 from hal.lora import PRIVATE_SYNC_WORD, AirInterface, RadioProfile
 from radio_sim.rn2483 import Rn2483, on_air_settings
+from world_sim.devices.pty_port import make_raw, read_master, write_to_master
 
-_READ_CHUNK = 4096
 _MAX_PENDING_INPUT = 4096   # bytes of an unterminated line kept before it is answered as invalid
 
 
@@ -61,12 +58,7 @@ class _ChannelPort:
 class _Pty:
     def __init__(self, baudrate: int):
         self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        attrs = termios.tcgetattr(self.slave)
-        speed = getattr(termios, f"B{baudrate}")
-        attrs[4] = attrs[5] = speed                       # nominal 57600 8N1: ptys ignore the rate
-        attrs[2] = (attrs[2] & ~(termios.CSIZE | termios.PARENB | termios.CSTOPB)) | termios.CS8 | termios.CLOCAL | termios.CREAD
-        termios.tcsetattr(self.slave, termios.TCSANOW, attrs)
+        make_raw(self.slave, baudrate)                     # nominal 57600 8N1: ptys ignore the rate
         os.set_blocking(self.master, False)
         self.path = os.ttyname(self.slave)
         self.inbuf = bytearray()
@@ -237,28 +229,13 @@ class ModemBank:
             self._flush(p)
 
     def _flush(self, p: _Pty) -> None:
-        while p.outbuf:
-            try:
-                n = os.write(p.master, p.outbuf)
-            except BlockingIOError:
-                return
-            except OSError as e:
-                if e.errno in (errno.EIO, errno.EBADF):
-                    p.outbuf.clear()
-                    return
-                raise
-            del p.outbuf[:n]
+        write_to_master(p.master, p.outbuf)
 
     def _handle_input(self, i: int, now_us: int) -> None:
         p = self._ptys[i]
-        try:
-            data = os.read(p.master, _READ_CHUNK)
-        except (BlockingIOError, InterruptedError):
+        data = read_master(p.master)
+        if not data:
             return
-        except OSError as e:
-            if e.errno == errno.EIO:
-                return
-            raise
         p.inbuf += data
         while True:
             nl = p.inbuf.find(b"\n")

@@ -130,11 +130,6 @@ class MapLayers:
     clearance_m: np.ndarray    # float32: room from the best point of the cell to the expected wall faces
     standing: np.ndarray       # int8: index into kernels.SUBCELL_OFFSETS of the cell's best point
 
-    def point_of(self, i: int, j: int) -> tuple[float, float]:
-        """Offset (rows, cols) in cells from cell (i, j)'s centre to its best point."""
-        di, dj = kernels.SUBCELL_OFFSETS[self.standing[i, j]]
-        return 0.5 * float(di), 0.5 * float(dj)
-
 
 # The scan fill marks the cell half a cell beyond a hit, so a wall face lies between an
 # occupied cell's centre and one cell nearer the robot: a square of this half side (in
@@ -193,6 +188,7 @@ class LocalMap:
         # (mark_passed): a gap the robot drove through is one it fits through.
         self.passed: set[tuple[int, int]] = set()
         self._last_passed: tuple[int, int] | None = None
+        self._passed_cells = np.zeros((0, 2), np.int64)   # self.passed as an array, for layers()
 
     # --- geometry -------------------------------------------------------------------
     def _anchor_for(self, x_m: float, y_m: float) -> tuple[int, int]:
@@ -348,7 +344,9 @@ class LocalMap:
         """Cells the body has been through (mark_passed) are traversable while they read free."""
         if not self.passed:
             return
-        cells = np.array(list(self.passed), np.int64).reshape(-1, 2) - (self.row0, self.col0)
+        if len(self._passed_cells) != len(self.passed):       # the set only grows
+            self._passed_cells = np.array(sorted(self.passed), np.int64).reshape(-1, 2)
+        cells = self._passed_cells - (self.row0, self.col0)
         inside = (cells >= 0).all(axis=1) & (cells < self.n).all(axis=1)
         i, j = cells[inside, 0], cells[inside, 1]
         free = state[i, j] == kernels.FREE

@@ -62,14 +62,12 @@ class Planner:
         """World points through the cells, each at the cell's best point (its centre unless a
         wall is near: in a door an even number of cells wide that is the door's middle, on a
         cell edge), and the room there."""
+        ij = np.array(cells, np.int64).reshape(-1, 2)
+        half_cells = 0.5 * kernels.SUBCELL_OFFSETS[layers.standing[ij[:, 0], ij[:, 1]]]
         res = self.p.resolution_m
-        xy = np.empty((len(cells), 2), np.float64)
-        for k, (i, j) in enumerate(cells):
-            di, dj = layers.point_of(i, j)
-            cx, cy = self.map.center_of(i, j)
-            xy[k] = (cx + dj * res, cy + di * res)
-        room = np.array([layers.clearance_m[i, j] for i, j in cells], np.float64)
-        return xy, room
+        x = (self.map.col0 + ij[:, 1] + 0.5) * res + half_cells[:, 1] * res
+        y = (self.map.row0 + ij[:, 0] + 0.5) * res + half_cells[:, 0] * res
+        return np.column_stack([x, y]), layers.clearance_m[ij[:, 0], ij[:, 1]].astype(np.float64)
 
     def _in_window(self, i: int, j: int) -> bool:
         return 0 <= i < self.map.n and 0 <= j < self.map.n

@@ -27,7 +27,7 @@ class PtyPort:
         self._on_input = on_input
         self.master, self.slave = os.openpty()
         try:
-            _make_raw(self.slave, baudrate)
+            make_raw(self.slave, baudrate)
             os.set_blocking(self.master, False)
             self._wake_r, self._wake_w = os.pipe()
         except BaseException:
@@ -105,27 +105,10 @@ class PtyPort:
             self._flush_locked()
 
     def _read(self) -> bytes:
-        try:
-            return os.read(self.master, _READ_CHUNK)
-        except (BlockingIOError, InterruptedError):
-            return b""
-        except OSError as e:
-            if e.errno == errno.EIO:       # no client has the slave open
-                return b""
-            raise
+        return read_master(self.master)
 
     def _flush_locked(self) -> None:
-        while self._out:
-            try:
-                n = os.write(self.master, self._out)
-            except BlockingIOError:
-                return
-            except OSError as e:
-                if e.errno in (errno.EIO, errno.EBADF):
-                    self._out.clear()
-                    return
-                raise
-            del self._out[:n]
+        write_to_master(self.master, self._out)
 
     def _wake(self) -> None:
         try:
@@ -134,7 +117,36 @@ class PtyPort:
             pass
 
 
-def _make_raw(fd: int, baudrate: int) -> None:
+def read_master(master: int) -> bytes:
+    """What the client has written so far (non-blocking master): b'' if nothing, or if no
+    client has the slave open."""
+    try:
+        return os.read(master, _READ_CHUNK)
+    except (BlockingIOError, InterruptedError):
+        return b""
+    except OSError as e:
+        if e.errno == errno.EIO:       # no client has the slave open
+            return b""
+        raise
+
+
+def write_to_master(master: int, out: bytearray) -> None:
+    """Write as much of `out` as the pty takes now and remove it from `out`; with the pty
+    gone (or no client) the bytes are dropped."""
+    while out:
+        try:
+            n = os.write(master, out)
+        except BlockingIOError:
+            return
+        except OSError as e:
+            if e.errno in (errno.EIO, errno.EBADF):
+                out.clear()
+                return
+            raise
+        del out[:n]
+
+
+def make_raw(fd: int, baudrate: int) -> None:
     """8N1 raw mode at a nominal baud rate (a pty ignores the rate; clients check it)."""
     tty.setraw(fd)
     attrs = termios.tcgetattr(fd)
