@@ -58,15 +58,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 @contextlib.contextmanager
 def _ctrl_c_deferred():
-    """SIGINT held back (delivered when the block ends), in the main thread."""
+    """SIGINT held back (delivered when the block ends), in the main thread. The handler is
+    swapped rather than the signal masked: a SIGINT that reached the process just before the
+    block still runs its Python handler at the next bytecode, inside the block, and the
+    KeyboardInterrupt would split a trial's write from its count."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    held = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append((signum, frame)))
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        signal.signal(signal.SIGINT, previous)
+        if held and callable(previous):
+            previous(*held[0])
 
 
 def _existing_grid(out: Path) -> str | None:
