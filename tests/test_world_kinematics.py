@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 from PIL import Image
 
-from world_sim.kinematics import BodyState, ClearanceMap, step, wrap_angle
+from world_sim.kinematics import BodyState, ClearanceMap, advance, advance_all, step, wrap_angle
 from world_sim.occupancy_map import OccupancyMap
 
 MAPS = Path("/work/shared/maps")
@@ -266,3 +266,22 @@ def test_world_robots_never_enter_walls(pick, commands):
         poses = [world.true_pose(j) for j in range(3)]
         c = truth.clearance(np.array([p.x_m for p in poses]), np.array([p.y_m for p in poses]))
         assert np.all(c > RADIUS_M)
+
+
+@settings(max_examples=60, deadline=None)
+@given(random_world(), st.lists(st.tuples(st.floats(-1.0, 1.0), st.floats(-2.0, 2.0)), min_size=1, max_size=4),
+       st.floats(0.01, 0.5))
+def test_advance_all_equals_advance_per_robot(world, commands, dt_s):
+    """The world moves the whole team in one call: the same poses, distances and blocks as
+    one `advance` per robot."""
+    _occ, clr, s = world
+    poses = np.array([(s.x_m, s.y_m, s.yaw_rad)] * len(commands))
+    cmds = np.array(commands)
+    travelled = np.empty(len(commands))
+    blocked = np.empty(len(commands), dtype=bool)
+    advance_all(clr.wall_u8, clr.cell_clearance_lb_m, clr.origin_x_m, clr.origin_y_m, clr.resolution_m,
+                RADIUS_M, 0.01, poses, cmds, dt_s, travelled, blocked)
+    for i, (v, w) in enumerate(commands):
+        x, y, yaw, ds, hit = advance(clr.wall_u8, clr.cell_clearance_lb_m, clr.origin_x_m, clr.origin_y_m,
+                                     clr.resolution_m, RADIUS_M, 0.01, s.x_m, s.y_m, s.yaw_rad, v, w, dt_s)
+        assert (poses[i, 0], poses[i, 1], poses[i, 2], travelled[i], blocked[i]) == (x, y, yaw, ds, hit)

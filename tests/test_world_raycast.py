@@ -8,10 +8,12 @@ from hypothesis import given, settings, strategies as st
 
 from world_sim.raycast import (
     cast_and_mark,
+    cast_and_mark_all,
     cast_rays,
     cast_rays_reference,
     mark_observed,
     mark_observed_reference,
+    pair_wall_lengths_m,
     wall_length_m,
     wall_length_m_reference,
 )
@@ -148,3 +150,27 @@ def test_real_map_crop_matches_reference():
         mark_observed(obs_got, wall, 15.0, 20.0, 0.05, x, y, angles, got)
         mark_observed_reference(obs_want, wall, 15.0, 20.0, 0.05, x, y, angles, got)
         assert np.array_equal(obs_got, obs_want)
+
+
+@settings(max_examples=150, deadline=None)
+@given(scenes(), st.lists(st.tuples(st.floats(0.01, 0.99), st.floats(0.01, 0.99), angle_st), min_size=1, max_size=5),
+       st.floats(0.0, 8.0))
+def test_the_team_calls_equal_one_call_per_robot(scene, robots, within_cells):
+    """cast_and_mark_all and pair_wall_lengths_m (the world's one call per step for the whole
+    team) give exactly what the per-robot kernels give."""
+    wall, ox, oy, res, _, _, angles, max_range = scene
+    rows, cols = wall.shape
+    poses = np.array([(ox + fx * cols * res, oy + fy * rows * res, yaw) for fx, fy, yaw in robots])
+    observed = np.zeros((len(poses),) + wall.shape, dtype=bool)
+    ranges = cast_and_mark_all(observed, wall, ox, oy, res, poses, angles, max_range)
+    within_m = within_cells * res
+    lengths = pair_wall_lengths_m(wall, ox, oy, res, poses, within_m)
+    for i, (x, y, yaw) in enumerate(poses):
+        want_observed = np.zeros(wall.shape, dtype=bool)
+        want = cast_and_mark(want_observed, wall, ox, oy, res, x, y, angles + yaw, max_range)
+        assert np.array_equal(ranges[i], want) and np.array_equal(observed[i], want_observed)
+        for j, (xj, yj, _) in enumerate(poses):
+            if i != j and (xj - x) ** 2 + (yj - y) ** 2 <= within_m ** 2:
+                assert lengths[i, j] == wall_length_m(wall, ox, oy, res, x, y, xj, yj)
+            else:
+                assert math.isnan(lengths[i, j])

@@ -188,6 +188,21 @@ def advance(wall, clear_lb, ox, oy, res, radius_m, spacing_m, x, y, yaw, v, omeg
     return px, py, yaw_end, arc_m, False
 
 
+@njit(cache=True)
+def advance_all(wall, clear_lb, ox, oy, res, radius_m, spacing_m, poses, cmds, dt_s, travelled_m, blocked):
+    """`advance` for every robot in one call: poses (n, 3) in place from cmds (n, 2) of
+    (v, omega); each robot's distance driven into travelled_m and whether a wall stopped
+    it into blocked."""
+    for i in range(poses.shape[0]):
+        x, y, yaw, ds, hit = advance(wall, clear_lb, ox, oy, res, radius_m, spacing_m,
+                                     poses[i, 0], poses[i, 1], poses[i, 2], cmds[i, 0], cmds[i, 1], dt_s)
+        poses[i, 0] = x
+        poses[i, 1] = y
+        poses[i, 2] = yaw
+        travelled_m[i] = ds
+        blocked[i] = hit
+
+
 def step(
     state: BodyState,
     v_mps: float,

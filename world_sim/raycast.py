@@ -157,6 +157,17 @@ def cast_and_mark(observed, wall_u8, origin_x_m, origin_y_m, resolution_m, x_m, 
 
 
 @njit(cache=True)
+def cast_and_mark_all(observed, wall_u8, origin_x_m, origin_y_m, resolution_m, poses, beam_angles_rad, max_range_m):
+    """`cast_and_mark` for every robot in one call: robot i at poses[i] = (x, y, yaw) casts
+    beam_angles_rad + yaw and marks observed[i]. Returns the ranges, (n, beams)."""
+    out = np.empty((poses.shape[0], beam_angles_rad.shape[0]), np.float64)
+    for i in range(poses.shape[0]):
+        out[i] = cast_and_mark(observed[i], wall_u8, origin_x_m, origin_y_m, resolution_m,
+                               poses[i, 0], poses[i, 1], beam_angles_rad + poses[i, 2], max_range_m)
+    return out
+
+
+@njit(cache=True)
 def wall_length_m(wall_u8, origin_x_m, origin_y_m, resolution_m, x0_m, y0_m, x1_m, y1_m):
     """Length (m) of the segment (x0, y0) -> (x1, y1) that lies inside wall or off-map cells
     (how much material a radio path between two robots crosses)."""
@@ -307,3 +318,19 @@ def wall_length_m_reference(wall_u8, origin_x_m, origin_y_m, resolution_m, x0_m,
             if wall_u8[row, col]:
                 total_g += overlap(*_cell_interval(gx, gy, dx, dy, row, col))
     return total_g * resolution_m
+
+
+@njit(cache=True)
+def pair_wall_lengths_m(wall_u8, origin_x_m, origin_y_m, resolution_m, poses, within_m):
+    """wall_length_m from robot i to robot j for every ordered pair closer than within_m
+    (NaN for the rest and on the diagonal): the UWB's NLOS bias for a whole team in one call."""
+    n = poses.shape[0]
+    out = np.full((n, n), np.nan)
+    for i in range(n):
+        for j in range(n):
+            dx = poses[j, 0] - poses[i, 0]
+            dy = poses[j, 1] - poses[i, 1]
+            if i != j and dx * dx + dy * dy <= within_m * within_m:
+                out[i, j] = wall_length_m(wall_u8, origin_x_m, origin_y_m, resolution_m,
+                                          poses[i, 0], poses[i, 1], poses[j, 0], poses[j, 1])
+    return out

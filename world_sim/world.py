@@ -21,9 +21,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from hal.samples import AoaBearing, LidarScan, OdometrySample, UwbRange
-from world_sim.kinematics import BodyState, ClearanceMap, advance, wrap_angle
+from world_sim.kinematics import BodyState, ClearanceMap, advance_all, wrap_angle
 from world_sim.occupancy_map import OccupancyMap
-from world_sim.raycast import cast_and_mark, wall_length_m
+from world_sim.raycast import cast_and_mark_all, pair_wall_lengths_m
 from world_sim.seeding import stream
 
 # Measurements a robot has not collected are dropped oldest first beyond this many.
@@ -224,16 +224,18 @@ class World:
     def _move_all(self, dt_s: float, travelled_signed: np.ndarray, turned: np.ndarray, blocked_any: np.ndarray) -> None:
         p = self.params
         c = self.clearance
+        start = self._pose.copy()
+        travelled_m = np.empty(self.n_robots)
+        blocked = np.empty(self.n_robots, dtype=bool)
+        advance_all(c.wall_u8, c.cell_clearance_lb_m, c.origin_x_m, c.origin_y_m, c.resolution_m,
+                    p.robot_radius_m, p.collision_spacing_m, self._pose, self._cmd, dt_s, travelled_m, blocked)
+        self._path_m += travelled_m
+        blocked_any |= blocked
         for i in range(self.n_robots):
-            x0, y0, th0 = self._pose[i]
+            x0, y0, th0 = start[i]
+            x1, y1, _ = self._pose[i]
+            ds = travelled_m[i]
             v, w = self._cmd[i]
-            x1, y1, th1, ds, blocked = advance(
-                c.wall_u8, c.cell_clearance_lb_m, c.origin_x_m, c.origin_y_m, c.resolution_m,
-                p.robot_radius_m, p.collision_spacing_m, x0, y0, th0, v, w, dt_s,
-            )
-            self._pose[i] = (x1, y1, th1)
-            self._path_m[i] += ds
-            blocked_any[i] |= blocked
             dth = w * dt_s
             travelled_signed[i] += math.copysign(ds, v)
             turned[i] += dth
@@ -260,44 +262,40 @@ class World:
     def _fire_lidar(self) -> None:
         p = self.params
         occ = self.occ
+        all_ranges = cast_and_mark_all(self._observed, self._wall, occ.origin_x_m, occ.origin_y_m, occ.resolution_m,
+                                       self._pose, self._beam_angles, p.lidar_range_m)
+        noise = np.stack([rng.standard_normal(p.lidar_beams) for rng in self._rng_lidar]) * p.lidar_noise_std_m
+        hit = all_ranges < p.lidar_range_m
+        measured = np.where(hit, np.clip(all_ranges + noise, 0.0, p.lidar_range_m), p.lidar_range_m).astype(np.float32)
+        measured.flags.writeable = False  # every reader gets the same sample object
         for i in range(self.n_robots):
-            x, y, yaw = self._pose[i]
-            true_ranges = cast_and_mark(
-                self._observed[i], self._wall, occ.origin_x_m, occ.origin_y_m, occ.resolution_m,
-                x, y, self._beam_angles + yaw, p.lidar_range_m,
-            )
-            noise = self._rng_lidar[i].standard_normal(p.lidar_beams) * p.lidar_noise_std_m
-            hit = true_ranges < p.lidar_range_m
-            measured = np.where(hit, np.clip(true_ranges + noise, 0.0, p.lidar_range_m), p.lidar_range_m)
-            measured = measured.astype(np.float32)
-            measured.flags.writeable = False  # every reader gets the same sample object
             self._scans[i] = LidarScan(
                 stamp_us=self.now_us,
                 angle_min_rad=p.lidar_angle_min_rad,
                 angle_increment_rad=p.lidar_angle_increment_rad,
                 range_max_m=p.lidar_range_m,
-                ranges_m=measured,
+                ranges_m=measured[i],
             )
 
     def _fire_uwb(self) -> None:
         p = self.params
         occ = self.occ
+        # One metre beyond the range, so that the exact test below decides who is in range.
+        wall_m = pair_wall_lengths_m(self._wall, occ.origin_x_m, occ.origin_y_m, occ.resolution_m,
+                                     self._pose, p.uwb_range_max_m + 1.0)
         for i in range(self.n_robots):
             xi, yi, _ = self._pose[i]
-            rng = self._rng_uwb[i]
+            peers = [j for j in range(self.n_robots)
+                     if j != i and math.hypot(self._pose[j, 0] - xi, self._pose[j, 1] - yi) <= p.uwb_range_max_m]
+            # One draw per peer in range, in the peers' order: the same stream as drawing them one by one.
+            noise = self._rng_uwb[i].standard_normal(len(peers))
             out = self._uwb[i]
-            for j in range(self.n_robots):
-                if j == i:
-                    continue
-                xj, yj, _ = self._pose[j]
-                d = math.hypot(xj - xi, yj - yi)
-                if d > p.uwb_range_max_m:
-                    continue
-                through_wall_m = wall_length_m(self._wall, occ.origin_x_m, occ.origin_y_m, occ.resolution_m,
-                                               xi, yi, xj, yj)
+            for j, z in zip(peers, noise):
+                d = math.hypot(self._pose[j, 0] - xi, self._pose[j, 1] - yi)
+                through_wall_m = wall_m[i, j]
                 bias = p.uwb_nlos_bias_m + p.uwb_nlos_bias_per_wall_m * through_wall_m if through_wall_m > 0 else 0.0
-                r = max(d + bias + p.uwb_noise_std_m * rng.standard_normal(), 0.0)
-                out.append(UwbRange(stamp_us=self.now_us, peer_id=j, range_m=r))
+                r = max(d + bias + p.uwb_noise_std_m * z, 0.0)
+                out.append(UwbRange(stamp_us=self.now_us, peer_id=j, range_m=float(r)))
             del out[:-MAX_PENDING_MEASUREMENTS]
 
     def _fire_aoa(self) -> None:
