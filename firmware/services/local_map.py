@@ -17,6 +17,7 @@ import numpy as np
 
 from firmware import kernels
 from firmware.params import ExplorationParams
+from firmware.services.body_fit import BodyFit
 
 
 class TilePager:
@@ -131,27 +132,6 @@ class MapLayers:
     standing: np.ndarray       # int8: index into kernels.SUBCELL_OFFSETS of the cell's best point
 
 
-# The scan fill marks the cell half a cell beyond a hit, so a wall face lies between an
-# occupied cell's centre and one cell nearer the robot: a square of this half side (in
-# cells) is where faces are expected; the centre alone is the most room there can be.
-EXPECTED_FACE_HALF_SIDE_CELLS = 0.5
-# Chamfer distances run long by at most 8.3 % (kernels.chamfer_distance); a cell's points lie
-# within sqrt(2)/2 cells of its centre.
-_CHAMFER_LONG = 1.0824
-_HALF_DIAGONAL = math.sqrt(2.0) / 2.0
-
-
-def inflation(spare_m: np.ndarray, reach_m: float, decay_per_m: float) -> np.ndarray:
-    """nav2's decaying inflation, normalised: 1 where the body touches (spare room 0 or
-    less), falling as exp(-decay * spare) and reaching 0 at reach_m of spare room."""
-    spare = np.clip(spare_m, 0.0, None)
-    if reach_m <= 0.0:
-        return np.zeros(np.shape(spare_m))
-    floor = math.exp(-decay_per_m * reach_m)
-    return np.clip((np.exp(-decay_per_m * spare) - floor) / (1.0 - floor), 0.0, 1.0) if floor < 1.0 else \
-        np.clip(1.0 - spare / reach_m, 0.0, 1.0)
-
-
 def close_wall_gaps(state: np.ndarray) -> np.ndarray:
     """Unknown cells touching a wall cell count as wall for line of sight. Far walls are hit
     by beams more than a cell apart, so their occupied cells have unknown gaps; rays slipping
@@ -189,6 +169,7 @@ class LocalMap:
         self.passed: set[tuple[int, int]] = set()
         self._last_passed: tuple[int, int] | None = None
         self._passed_cells = np.zeros((0, 2), np.int64)   # self.passed as an array, for layers()
+        self._fits = {tight: BodyFit(params, tight) for tight in (False, True)}
 
     # --- geometry -------------------------------------------------------------------
     def _anchor_for(self, x_m: float, y_m: float) -> tuple[int, int]:
@@ -315,30 +296,12 @@ class LocalMap:
             i, j = self.cell_of(bx, by)
             if 0 <= i < self.n and 0 <= j < self.n:
                 state[i, j] = kernels.OCCUPIED
-        traversable = np.zeros(state.shape, bool)
-        cell_cost = np.ones(state.shape, np.float64)
-        clearance_m = np.zeros(state.shape, np.float32)
-        standing = np.zeros(state.shape, np.int8)
-        # Only known cells can be traversable, and distances matter only up to the inflation's
-        # reach: work on the known cells' bounding box, padded by that reach (exact, since
-        # unknown cells outside it count as blocked anyway).
-        known_rows = np.nonzero((state != kernels.UNKNOWN).any(axis=1))[0]
-        if len(known_rows):
-            known_cols = np.nonzero((state != kernels.UNKNOWN).any(axis=0))[0]
-            body_m = p.robot_radius_m + (0.0 if tight else p.lethal_tolerance_m)
-            pad = int(np.ceil(max(p.inflation_radius_m, body_m) / p.resolution_m)) + 2
-            i0, i1 = max(known_rows[0] - pad, 0), min(known_rows[-1] + pad + 1, self.n)
-            j0, j1 = max(known_cols[0] - pad, 0), min(known_cols[-1] + pad + 1, self.n)
-            box = (slice(i0, i1), slice(j0, j1))
-            crop = state[box]
-            d_occ_cells, d_block_cells = kernels.chamfer_distances(crop)
-            fit = self._body_fit(crop, d_occ_cells, body_m / p.resolution_m, tight)
-            traversable[box], clearance_m[box], standing[box] = fit
-            self._open_passed(traversable, state)
-            cell_cost[box] = 1.0 + p.inflation_cost_weight * inflation(
-                d_block_cells * p.resolution_m - body_m, p.inflation_radius_m - body_m, p.inflation_decay_per_m)
-        return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable, cell_cost=cell_cost,
-                         clearance_m=clearance_m, standing=standing)
+        fit = self._fits[tight].update(state, self.row0, self.col0)
+        traversable = fit.traversable.copy()
+        self._open_passed(traversable, state)
+        return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable,
+                         cell_cost=fit.cell_cost.copy(), clearance_m=fit.clearance_m.copy(),
+                         standing=fit.standing.copy())
 
     def _open_passed(self, traversable: np.ndarray, state: np.ndarray) -> None:
         """Cells the body has been through (mark_passed) are traversable while they read free."""
@@ -351,29 +314,3 @@ class LocalMap:
         i, j = cells[inside, 0], cells[inside, 1]
         free = state[i, j] == kernels.FREE
         traversable[i[free], j[free]] = True
-
-    def _body_fit(self, crop: np.ndarray, d_occ_cells: np.ndarray, body_cells: float, tight: bool):
-        """(traversable, clearance in m, best point) of every cell of crop. Cells far from
-        walls fit the body at their centre; cells near them are settled by
-        kernels.best_standing_points with the wall faces where expected, or (tight) with
-        them at the occupied cells' centres, the most room there can be."""
-        res = self.p.resolution_m
-        h = EXPECTED_FACE_HALF_SIDE_CELLS
-        free = crop == kernels.FREE
-        clearance_cells = np.maximum(d_occ_cells - h, 0.0)
-        # A cell a little beyond where the centre surely fits still goes to the kernel, so that
-        # a path through a door an even number of cells wide runs down its middle.
-        sure = free & (d_occ_cells >= _CHAMFER_LONG * (body_cells + h * math.sqrt(2.0)) + 1.0)
-        hopeless = d_occ_cells + _HALF_DIAGONAL < body_cells
-        band_i, band_j = np.nonzero(free & ~sure & ~hopeless)
-        traversable = sure.copy()
-        standing = np.zeros(crop.shape, np.int8)
-        if len(band_i):
-            occupied = crop == kernels.OCCUPIED
-            reach = _CHAMFER_LONG * (body_cells + h * math.sqrt(2.0)) + 2.0
-            face = 0.0 if tight else h
-            room, best = kernels.best_standing_points(occupied, band_i, band_j, face, reach)
-            traversable[band_i, band_j] = room >= body_cells
-            standing[band_i, band_j] = best
-            clearance_cells[band_i, band_j] = room - (h - face)
-        return traversable, (clearance_cells * res).astype(np.float32), standing
