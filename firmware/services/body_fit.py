@@ -29,7 +29,7 @@ EXPECTED_FACE_HALF_SIDE_CELLS = 0.5
 _CHAMFER_LONG = 1.0824
 _HALF_DIAGONAL = math.sqrt(2.0) / 2.0
 # Side of the tiles whose changes are tracked, in cells.
-TILE_CELLS = 32
+TILE_CELLS = 16
 # Past this share of dirty tiles one pass over the known part of the window is cheaper.
 _FULL_PASS_SHARE = 0.6
 # Cells shifted in from outside the window: a value no state takes, so they read as changed.
