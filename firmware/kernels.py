@@ -479,21 +479,35 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells):
     dtheta = 2.0 * math.pi / n_rays
     steps = int(max_range_cells)
     off = ray_offsets(n_rays, steps)
+    # Computed once per call: each step's offset as an index into the flattened window, and
+    # the area s * dtheta an unknown cell at step s stands for.
+    flat = state.ravel()
+    flat_off = np.empty((n_rays, steps + 1), np.int64)
+    for k in range(n_rays):
+        for s in range(steps + 1):
+            flat_off[k, s] = off[k, s, 0] * cols + off[k, s, 1]
+    area = np.empty(steps + 1, np.float64)
+    for s in range(steps + 1):
+        area[s] = s * dtheta
     for c in prange(n):        # candidates in parallel: each sums its own rays in order
         total = 0.0
         ci = cand_i[c]
         cj = cand_j[c]
+        base = ci * cols + cj
         for k in range(n_rays):
-            for s in range(1, steps + 1):
-                i = ci + off[k, s, 0]
-                j = cj + off[k, s, 1]
-                if i < 0 or j < 0 or i >= rows or j >= cols:
-                    break
-                v = state[i, j]
+            # A ray's row and column offsets are each monotone in s, so its steps inside the
+            # window form one run: up to the last one inside, if it starts inside.
+            last = steps
+            while last > 0 and not (0 <= ci + off[k, last, 0] < rows and 0 <= cj + off[k, last, 1] < cols):
+                last -= 1
+            if last > 0 and not (0 <= ci + off[k, 1, 0] < rows and 0 <= cj + off[k, 1, 1] < cols):
+                last = 0
+            for s in range(1, last + 1):
+                v = flat[base + flat_off[k, s]]
                 if v == OCCUPIED:
                     break
                 if v == UNKNOWN:
-                    total += s * dtheta
+                    total += area[s]
         out[c] = total
     return out
 

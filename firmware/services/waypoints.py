@@ -7,6 +7,7 @@ fall under e_min; members outside it are remembered until the robot comes back.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,15 +26,87 @@ class Waypoint:
 def unknown_box_counts(state: np.ndarray, half_cells: int, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """Unknown cells within the square of half-side half_cells around each (row, col): an
     upper bound of what a candidate there can observe, to skip hopeless candidates cheaply."""
-    unknown = (state == kernels.UNKNOWN).astype(np.int32)
-    sat = np.zeros((unknown.shape[0] + 1, unknown.shape[1] + 1), np.int64)
-    sat[1:, 1:] = unknown.cumsum(0).cumsum(1)
-    n_r, n_c = unknown.shape
-    i0 = np.clip(rows - half_cells, 0, n_r)
-    i1 = np.clip(rows + half_cells + 1, 0, n_r)
-    j0 = np.clip(cols - half_cells, 0, n_c)
-    j1 = np.clip(cols + half_cells + 1, 0, n_c)
+    n_r, n_c = state.shape
+    row_lines, i0, i1 = _box_lines(rows, half_cells, n_r)
+    col_lines, j0, j1 = _box_lines(cols, half_cells, n_c)
+    # Unknown cells in each block between consecutive lines, summed into a summed-area table
+    # on the lines only: the boxes' corners are all on them.
+    unknown = (state == kernels.UNKNOWN).view(np.uint8)
+    blocks = np.add.reduceat(unknown, row_lines[row_lines < n_r], axis=0, dtype=np.int32)
+    blocks = np.add.reduceat(blocks, col_lines[col_lines < n_c], axis=1)
+    sat = np.zeros((len(row_lines), len(col_lines)), np.int64)
+    sat[1:, 1:] = blocks.cumsum(0).cumsum(1)[:len(row_lines) - 1, :len(col_lines) - 1]
     return sat[i1, j1] - sat[i0, j1] - sat[i1, j0] + sat[i0, j0]
+
+
+def _box_lines(centres: np.ndarray, half_cells: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The boxes' edges along one axis, clipped to [0, n]: the sorted distinct lines (0
+    among them), and for each box the index of its low and of its high edge there."""
+    lo = np.clip(centres - half_cells, 0, n)
+    hi = np.clip(centres + half_cells + 1, 0, n)
+    lines, index = np.unique(np.concatenate([[0], lo, hi]), return_inverse=True)
+    return lines, index[1:1 + len(lo)], index[1 + len(lo):]
+
+
+# A change of state marks the cells of its block (this many cells a side) changed, and the
+# remembered counts of every block within ray reach are forgotten.
+MEMO_BLOCK_CELLS = 10
+
+
+class ObservableUnknownMemo:
+    """kernels.observable_unknown of window cells, remembered across planning cycles. A cell's
+    count reads only the cells its rays reach, within max_range_cells of it, and where the
+    window's edges are; so it holds while none of those cells changes state and the window
+    stays where it is, and only counts near where the map changed are cast again."""
+
+    def __init__(self, n_rays: int, max_range_cells: float) -> None:
+        self.n_rays = n_rays
+        self.max_range_cells = max_range_cells
+        off = kernels.ray_offsets(n_rays, int(max_range_cells)).astype(np.int64)
+        reach2 = int((off ** 2).sum(axis=2).max())
+        # Block offsets at which some cell of one block is within ray reach of a cell of the other.
+        b = MEMO_BLOCK_CELLS
+        m = math.isqrt(reach2) // b + 2
+        d = np.arange(-m, m + 1)
+        gap = np.where(d != 0, (np.abs(d) - 1) * b + 1, 0)
+        self._near_di, self._near_dj = np.nonzero(gap[:, None] ** 2 + gap[None, :] ** 2 <= reach2)
+        self._near_di -= m
+        self._near_dj -= m
+        self._anchor: tuple[int, int] | None = None
+        self._state = np.zeros((0, 0), np.uint8)
+        self._count = np.zeros((0, 0))                # by block-padded window cell; NaN: not known
+
+    def counts(self, local_map, state: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """observable_unknown(state, rows, cols) for window cells of local_map."""
+        self._follow(state, (local_map.row0, local_map.col0))
+        out = self._count[rows, cols]
+        todo = np.isnan(out)
+        if todo.any():
+            out[todo] = kernels.observable_unknown(state, rows[todo], cols[todo], self.n_rays, self.max_range_cells)
+            self._count[rows[todo], cols[todo]] = out[todo]
+        return out
+
+    def _follow(self, state: np.ndarray, anchor: tuple[int, int]) -> None:
+        """Forget the counts a change of state or of the window may have changed."""
+        b = MEMO_BLOCK_CELLS
+        if anchor != self._anchor or state.shape != self._state.shape:
+            blocks = (-(-state.shape[0] // b), -(-state.shape[1] // b))
+            self._count = np.full((blocks[0] * b, blocks[1] * b), np.nan)
+        else:
+            changed = np.flatnonzero(state != self._state)
+            if not len(changed):
+                return
+            n_bi, n_bj = self._count.shape[0] // b, self._count.shape[1] // b
+            ci, cj = np.divmod(changed, state.shape[1])
+            bi, bj = np.divmod(np.unique(ci // b * n_bj + cj // b), n_bj)
+            ni = (bi[:, None] + self._near_di).ravel()
+            nj = (bj[:, None] + self._near_dj).ravel()
+            inside = (ni >= 0) & (ni < n_bi) & (nj >= 0) & (nj < n_bj)
+            near = np.zeros((n_bi, n_bj), bool)
+            near[ni[inside], nj[inside]] = True
+            self._count.reshape(n_bi, b, n_bj, b).transpose(0, 2, 1, 3)[near] = np.nan
+        self._anchor = anchor
+        self._state = state.copy()
 
 
 # A last look (WaypointSet.look_again) tries every third cell.
@@ -49,6 +122,7 @@ class WaypointSet:
         # once, so last looks end.
         self._looked_again: set[tuple[int, int]] = set()
         self._failed: list[tuple[float, float]] = []      # where the robot got no closer
+        self._observable = ObservableUnknownMemo(params.info_rays, params.d_cam_m / params.resolution_m)
 
     def banned_mask(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """Per point: within ban_radius of a place dropped for good?"""
@@ -80,7 +154,7 @@ class WaypointSet:
         returned (and added to W), or None."""
         p = self.p
         # Finer than the candidate sub-grid: a strip the body can enter may lie between its points.
-        cand, e_bit = self._scored_candidates(state, reachable, LOOK_AGAIN_SPACING_CELLS)
+        cand, e_bit = self._scored_candidates(local_map, state, reachable, LOOK_AGAIN_SPACING_CELLS)
         keys = [(local_map.row0 + int(i), local_map.col0 + int(j)) for i, j in cand]
         xs = (local_map.col0 + cand[:, 1] + 0.5) * p.resolution_m
         ys = (local_map.row0 + cand[:, 0] + 0.5) * p.resolution_m
@@ -99,7 +173,7 @@ class WaypointSet:
         self.items.append(w)
         return w
 
-    def _scored_candidates(self, state: np.ndarray, reachable: np.ndarray,
+    def _scored_candidates(self, local_map, state: np.ndarray, reachable: np.ndarray,
                            spacing_cells: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Reachable cells of a sub-grid (candidate_spacing_m unless spacing_cells is given)
         with enough unknown around, and the information each would observe (bits)."""
@@ -107,16 +181,13 @@ class WaypointSet:
         res = p.resolution_m
         max_range_cells = p.d_cam_m / res
         step = spacing_cells or max(1, int(round(p.candidate_spacing_m / res)))
-        sub = np.zeros_like(reachable)
-        sub[step // 2::step, step // 2::step] = True
-        cand = np.argwhere(reachable & sub)
+        cand = np.argwhere(reachable[step // 2::step, step // 2::step]) * step + step // 2
         if len(cand):
             cells_needed = p.min_cluster_entropy_bit / p.entropy_per_cell_bit
             cand = cand[unknown_box_counts(state, int(max_range_cells), cand[:, 0], cand[:, 1]) >= cells_needed]
         if not len(cand):
             return cand.reshape(0, 2), np.zeros(0)
-        counts = kernels.observable_unknown(state, cand[:, 0].astype(np.int64), cand[:, 1].astype(np.int64),
-                                            p.info_rays, max_range_cells)
+        counts = self._observable.counts(local_map, state, cand[:, 0].astype(np.int64), cand[:, 1].astype(np.int64))
         return cand, counts * p.entropy_per_cell_bit
 
     def update(self, local_map, state: np.ndarray, reachable: np.ndarray) -> None:
@@ -124,7 +195,6 @@ class WaypointSet:
         p = self.p
         res = p.resolution_m
         n = state.shape[0]
-        max_range_cells = p.d_cam_m / res
         margin = 2
         # Re-score remembered waypoints that are back inside the local map.
         inside = []
@@ -135,12 +205,12 @@ class WaypointSet:
         if inside:
             ci = np.array([t[1] for t in inside], np.int64)
             cj = np.array([t[2] for t in inside], np.int64)
-            counts = kernels.observable_unknown(state, ci, cj, p.info_rays, max_range_cells)
+            counts = self._observable.counts(local_map, state, ci, cj)
             for (w, _, _), c in zip(inside, counts):
                 w.e_bit = float(c) * p.entropy_per_cell_bit
             self.items = [w for w in self.items if w.e_bit >= p.min_cluster_entropy_bit]
         # New candidates: reachable cells on a coarse sub-grid with enough unknown around.
-        cand, e_bit = self._scored_candidates(state, reachable)
+        cand, e_bit = self._scored_candidates(local_map, state, reachable)
         if len(cand) == 0:
             return
         xs = (local_map.col0 + cand[:, 1] + 0.5) * res
