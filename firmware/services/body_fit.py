@@ -168,7 +168,7 @@ class BodyFit:
                  inner: tuple[int, int, int, int] | None) -> None:
         """Derive the layers on state[box] and write them to fit on inner (all of box if None)."""
         b = (slice(box[0], box[1]), slice(box[2], box[3]))
-        crop = state[b]
+        crop = np.ascontiguousarray(state[b])   # one kernel signature, whatever the box
         d_occ, d_blk = kernels.chamfer_distances(crop)
         np.minimum(d_occ, self.cap_cells, out=d_occ)
         np.minimum(d_blk, self.cap_cells, out=d_blk)
