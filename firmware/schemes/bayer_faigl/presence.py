@@ -137,13 +137,18 @@ class PresenceRule:
         w_ij, w_inside = self.s.local_map.cells_of(wxy)
         v_ij, v_inside = self.s.local_map.cells_of(xy[others])
         # A report counts when it comes from outside the window or no known wall stands
-        # between the place and the waypoint.
+        # between the place and the waypoint. Each waypoint's first near place is tried
+        # first: it nearly always counts, and then the others need no line of sight.
         wk, vk = np.nonzero(near & w_inside[:, None])
-        counts = ~v_inside[vk]
-        ask = ~counts
-        counts[ask] = lines_of_sight(sight, w_ij[wk[ask], 0], w_ij[wk[ask], 1], v_ij[vk[ask], 0], v_ij[vk[ask], 1])
+        first = np.diff(wk, prepend=-1) != 0
         is_reported = np.zeros(len(items), bool)
-        is_reported[wk[counts]] = True
+        for stage in (first, ~first):
+            pick = stage & ~is_reported[wk]
+            w_at, v_at = wk[pick], vk[pick]
+            counts = ~v_inside[v_at]
+            ask = ~counts
+            counts[ask] = lines_of_sight(sight, w_ij[w_at[ask], 0], w_ij[w_at[ask], 1], v_ij[v_at[ask], 0], v_ij[v_at[ask], 1])
+            is_reported[w_at[counts]] = True
         # Outside the window there is nothing to check against: a report stands.
         out_dropped = ~w_inside & near.any(axis=1)
         keep = [w for w, r, d in zip(items, is_reported, out_dropped) if not r and not d]
