@@ -528,11 +528,12 @@ def mark_visible(state, src_i, src_j, n_rays, max_range_cells, wanted, out):
     block_cols = ((cols - 1) >> sh) + 1
     left_in_block = np.zeros((block_rows, block_cols), np.int64)
     for i in range(rows):
+        row = (i + 1) * pc + 1
         for j in range(cols):
-            blocked[(i + 1) * pc + j + 1] = state[i, j] == OCCUPIED
-            if wanted[i, j] and not out[i, j]:
-                left[(i + 1) * pc + j + 1] = True
-                left_in_block[i >> sh, j >> sh] += 1
+            blocked[row + j] = state[i, j] == OCCUPIED
+            left[row + j] = wanted[i, j] and not out[i, j]
+        for j in range(cols):
+            left_in_block[i >> sh, j >> sh] += left[row + j]
     step_flat = np.empty((n_rays, steps + 1), np.int64)
     for k in range(n_rays):
         for s in range(steps + 1):

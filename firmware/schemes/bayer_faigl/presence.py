@@ -170,7 +170,8 @@ class PresenceRule:
             ij, inside = self.s.local_map.cells_of(xy[places])
             seen = np.zeros(sight.shape, bool)
             kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], p.team_view_rays, reach_cells, counted, seen)
-            team_sight = np.where(seen, kernels.SEEN_BY_TEAM, sight)
+            team_sight = sight.copy()
+            team_sight[seen] = kernels.SEEN_BY_TEAM
             unseen_bit = kernels.observable_unknown(team_sight, wi, wj, p.info_rays, reach_cells) * p.entropy_per_cell_bit
             for w, left in zip(reported, unseen_bit):
                 (keep if left >= p.presence_keep_bit else dropped).append(w)
