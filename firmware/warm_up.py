@@ -42,4 +42,5 @@ def warm_up(params: ExplorationParams) -> None:
     # A teammate's view, as Bayer & Faigl's presence rule casts it.
     ij, inside = local_map.cells_of(np.array([[1.0, 0.0]]))
     kernels.mark_visible(layers.sight, ij[inside, 0], ij[inside, 1], small.team_view_rays,
-                         small.d_cam_m / small.resolution_m, np.zeros(layers.sight.shape, bool))
+                         small.d_cam_m / small.resolution_m, layers.sight == kernels.UNKNOWN,
+                         np.zeros(layers.sight.shape, bool))

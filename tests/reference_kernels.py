@@ -118,7 +118,7 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells, unknown=0
     return np.array(out)
 
 
-def mark_visible(state, src_i, src_j, n_rays, max_range_cells, occupied=2):
+def mark_visible(state, src_i, src_j, n_rays, max_range_cells, wanted, occupied=2):
     rows, cols = state.shape
     out = np.zeros((rows, cols), bool)
     dtheta = 2 * math.pi / n_rays
@@ -130,7 +130,7 @@ def mark_visible(state, src_i, src_j, n_rays, max_range_cells, occupied=2):
                 j = cj + math.floor(0.5 + s * math.cos(a))
                 if not (0 <= i < rows and 0 <= j < cols) or state[i, j] == occupied:
                     break
-                out[i, j] = True
+                out[i, j] = wanted[i, j]
     return out
 
 

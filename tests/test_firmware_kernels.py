@@ -213,19 +213,44 @@ def test_observable_unknown_matches_reference(state, data):
 @SETTINGS
 @given(grids(values=(0, 1, 2)), st.data())
 def test_mark_visible_matches_reference(state, data):
-    si, sj = _draw_cells(data, state.shape, data.draw(st.integers(0, 5)))
+    si, sj = _draw_cells(data, state.shape, data.draw(st.integers(0, 8)))
     rays = data.draw(st.integers(4, 400))
     reach = data.draw(st.floats(0.0, 40.0))
+    every = np.ones(state.shape, bool)
+    wanted = data.draw(st.sampled_from([every, _draw_mask(data, state.shape)]))
+    marked_before = data.draw(st.sampled_from([~every, _draw_mask(data, state.shape)]))
+    out = marked_before.copy()
+    kernels.mark_visible(state, si, sj, rays, reach, wanted, out)
+    np.testing.assert_array_equal(out, marked_before | ref.mark_visible(state, si, sj, rays, reach, wanted))
+
+
+def _draw_mask(data, shape):
+    cells = data.draw(st.lists(st.booleans(), min_size=shape[0] * shape[1], max_size=shape[0] * shape[1]))
+    return np.array(cells, bool).reshape(shape)
+
+
+def test_mark_visible_matches_reference_on_a_large_window_with_many_sources():
+    """Rays are cut short by counts per block of cells, checked every few steps: on small
+    grids few checks happen, so a window of many blocks, scattered walls and sparse wanted
+    cells, and sources that see much of the same."""
+    rng = np.random.default_rng(7)
+    state = rng.choice(np.array([0, 1, 2], np.uint8), size=(90, 110), p=[0.3, 0.68, 0.02])
+    state[30:33, 10:80] = kernels.OCCUPIED
+    wanted = (rng.random(state.shape) < 0.1) & (state == kernels.UNKNOWN)
+    si = rng.integers(0, 90, 12)
+    sj = rng.integers(0, 110, 12)
     out = np.zeros(state.shape, bool)
-    kernels.mark_visible(state, si, sj, rays, reach, out)
-    np.testing.assert_array_equal(out, ref.mark_visible(state, si, sj, rays, reach))
+    kernels.mark_visible(state, si, sj, 300, 45.0, wanted, out)
+    expected = ref.mark_visible(state, si, sj, 300, 45.0, wanted)
+    assert expected.sum() > 200
+    np.testing.assert_array_equal(out, expected)
 
 
 def test_mark_visible_stops_at_walls():
     state = np.zeros((60, 60), np.uint8)
     state[:, 40] = kernels.OCCUPIED
     out = np.zeros(state.shape, bool)
-    kernels.mark_visible(state, np.array([30]), np.array([30]), 600, 25.0, out)
+    kernels.mark_visible(state, np.array([30]), np.array([30]), 600, 25.0, np.ones(state.shape, bool), out)
     assert out[30, 39] and out[30, 5] and out[5, 30]
     assert not out[:, 40:].any()          # the wall and everything behind it
     assert not out[30, 30 - 27]           # beyond the range
@@ -260,7 +285,7 @@ def _with_threads(n, fn):
 @settings(max_examples=15, deadline=None)
 @given(scans(), grids(values=(0, 1, 2)), st.data())
 def test_parallel_kernels_give_the_same_bits_on_one_thread_and_on_all(scan, state, data):
-    """polar_fill, chamfer_distances, observable_unknown and mark_visible run their
+    """polar_fill, chamfer_distances and observable_unknown run their
     iterations in parallel; a robot computer with another core count must still drive the
     same mission, so one thread and all threads must agree exactly."""
     logodds, row0, col0, res, px, py, bin0, binw, ranges, range_max, region = scan
@@ -272,9 +297,7 @@ def test_parallel_kernels_give_the_same_bits_on_one_thread_and_on_all(scan, stat
         filled = logodds.copy()
         kernels.polar_fill(filled, row0, col0, res, px, py, bin0, binw, ranges, range_max,
                            0.85, -0.4, -4.0, 4.0, *region)
-        seen = np.zeros(state.shape, bool)
-        kernels.mark_visible(state, ci, cj, rays, reach, seen)
-        return (filled, *kernels.chamfer_distances(state), kernels.observable_unknown(state, ci, cj, rays, reach), seen)
+        return (filled, *kernels.chamfer_distances(state), kernels.observable_unknown(state, ci, cj, rays, reach))
 
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("NUMBA_NUM_THREADS is 1: nothing to compare (tests/conftest.py asks for two unless it is set)")

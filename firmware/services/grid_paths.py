@@ -113,15 +113,22 @@ def extract_path(parent: np.ndarray, goal_i: int, goal_j: int) -> list[tuple[int
     return cells
 
 
-def line_of_sight(state: np.ndarray, i0: int, j0: int, i1: int, j1: int) -> bool:
-    """No OCCUPIED cell on the straight segment between two cells of the local map."""
-    steps = max(abs(i1 - i0), abs(j1 - j0))
-    if steps == 0:
-        return True
-    t = np.linspace(0.0, 1.0, steps + 1)
-    ii = np.round(i0 + (i1 - i0) * t).astype(np.int64)
-    jj = np.round(j0 + (j1 - j0) * t).astype(np.int64)
-    return not bool((state[ii, jj] == kernels.OCCUPIED).any())
+def lines_of_sight(state: np.ndarray, i0: np.ndarray, j0: np.ndarray, i1: np.ndarray,
+                   j1: np.ndarray) -> np.ndarray:
+    """Per pair of cells of the local map (arrays of their rows and columns): no OCCUPIED
+    cell on the straight segment between them. A segment of n steps checks the cells at
+    round(start + (end - start) t) for t = 0, 1/n, ..., 1, as np.linspace spaces them."""
+    i0, j0, i1, j1 = (np.asarray(a, np.int64) for a in (i0, j0, i1, j1))
+    steps = np.maximum(np.abs(i1 - i0), np.abs(j1 - j0))
+    pair = np.repeat(np.arange(len(steps)), steps + 1)
+    first = np.cumsum(steps + 1) - (steps + 1)
+    s = np.arange(len(pair)) - first[pair]
+    n = steps[pair]
+    t = np.where(s == n, 1.0, s * (1.0 / np.maximum(n, 1)))
+    ii = np.round(i0[pair] + (i1 - i0)[pair] * t).astype(np.int64)
+    jj = np.round(j0[pair] + (j1 - j0)[pair] * t).astype(np.int64)
+    walls = np.bincount(pair, weights=state[ii, jj] == kernels.OCCUPIED, minlength=len(steps))
+    return (walls == 0) | (steps == 0)
 
 
 def cell_known(local_map: LocalMap, i: int, j: int) -> bool:

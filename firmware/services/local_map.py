@@ -190,7 +190,10 @@ class LocalMap:
     def cells_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Window cells (rows of i, j) of world points (rows of x, y), and which of them
         are inside the window."""
-        ij = np.array([self.cell_of(x, y) for x, y in xy], np.int64).reshape(-1, 2)
+        xy = np.asarray(xy, np.float64).reshape(-1, 2)
+        res = self.p.resolution_m
+        ij = np.stack([np.floor(xy[:, 1] / res).astype(np.int64) - self.row0,
+                       np.floor(xy[:, 0] / res).astype(np.int64) - self.col0], axis=1)
         return ij, (ij >= 0).all(axis=1) & (ij < self.n).all(axis=1)
 
     def contains(self, x_m: float, y_m: float, margin_cells: int = 0) -> bool:

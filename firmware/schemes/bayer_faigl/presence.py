@@ -7,7 +7,7 @@ import numpy as np
 
 from firmware import kernels
 from firmware.schemes.base import Services
-from firmware.services.grid_paths import line_of_sight
+from firmware.services.grid_paths import lines_of_sight
 from firmware.services.targets import Target
 from firmware.services.waypoints import Waypoint
 
@@ -128,45 +128,51 @@ class PresenceRule:
                             others: np.ndarray) -> tuple[list[Waypoint], list[Waypoint]]:
         """(kept, dropped): the presence rule of drop_waypoints_seen_by_others for the
         waypoints `items`, with `others` the indices of the teammates' places it counts."""
-        if len(others) == 0:
+        if len(others) == 0 or not items:
             return list(items), []
+        p = self.s.params
         xy = self.s.topo.positions()
-        reported = []   # (waypoint, i, j): waypoints with a report that may cancel them
-        keep = []
-        dropped = []
-        for w in items:
-            d = np.hypot(xy[others, 0] - w.x_m, xy[others, 1] - w.y_m)
-            near = others[d < self.s.params.d_cam_m]
-            wi, wj = self.s.local_map.cell_of(w.x_m, w.y_m)
-            if not self.s.local_map.in_window(wi, wj):
-                # Nothing to check against: the report stands.
-                (dropped if len(near) else keep).append(w)
-                continue
-            for v in near:
-                vi, vj = self.s.local_map.cell_of(xy[v, 0], xy[v, 1])
-                if not self.s.local_map.in_window(vi, vj) or line_of_sight(sight, wi, wj, vi, vj):
-                    reported.append((w, wi, wj))
-                    break
-            else:
-                keep.append(w)
-        if reported:
+        wxy = np.array([(w.x_m, w.y_m) for w in items])
+        near = np.hypot(xy[others, 0][None, :] - wxy[:, 0, None], xy[others, 1][None, :] - wxy[:, 1, None]) < p.d_cam_m
+        w_ij, w_inside = self.s.local_map.cells_of(wxy)
+        v_ij, v_inside = self.s.local_map.cells_of(xy[others])
+        # A report counts when it comes from outside the window or no known wall stands
+        # between the place and the waypoint. Each waypoint's first near place is tried
+        # first: it nearly always counts, and then the others need no line of sight.
+        wk, vk = np.nonzero(near & w_inside[:, None])
+        first = np.diff(wk, prepend=-1) != 0
+        is_reported = np.zeros(len(items), bool)
+        for stage in (first, ~first):
+            pick = stage & ~is_reported[wk]
+            w_at, v_at = wk[pick], vk[pick]
+            counts = ~v_inside[v_at]
+            ask = ~counts
+            counts[ask] = lines_of_sight(sight, w_ij[w_at[ask], 0], w_ij[w_at[ask], 1], v_ij[v_at[ask], 0], v_ij[v_at[ask], 1])
+            is_reported[w_at[counts]] = True
+        # Outside the window there is nothing to check against: a report stands.
+        out_dropped = ~w_inside & near.any(axis=1)
+        keep = [w for w, r, d in zip(items, is_reported, out_dropped) if not r and not d]
+        dropped = [w for w, d in zip(items, out_dropped) if d]
+        if is_reported.any():
+            reported = [w for w, r in zip(items, is_reported) if r]
+            wi = w_ij[is_reported, 0]
+            wj = w_ij[is_reported, 1]
+            reach_cells = p.d_cam_m / p.resolution_m
+            # observable_unknown below reads only the unknown cells its rays from these
+            # waypoints reach: what the teammates saw elsewhere does not change the result.
+            counted = np.zeros(sight.shape, bool)
+            kernels.mark_visible(sight, wi, wj, p.info_rays, reach_cells, sight == kernels.UNKNOWN, counted)
             # A place more than 2 d_cam from every such waypoint sees nothing the waypoint
             # would (1 m spare for cell rounding), so it is left out: the same result, much
             # less ray casting.
-            wxy = np.array([(w.x_m, w.y_m) for w, *_ in reported])
-            reach2 = (2.0 * self.s.params.d_cam_m + 1.0) ** 2
-            d2 = ((xy[others, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
-            places = others[d2 <= reach2]
+            d2 = ((xy[others, None, :] - wxy[None, is_reported, :]) ** 2).sum(axis=2).min(axis=1)
+            places = others[d2 <= (2.0 * p.d_cam_m + 1.0) ** 2]
             ij, inside = self.s.local_map.cells_of(xy[places])
             seen = np.zeros(sight.shape, bool)
-            kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], self.s.params.team_view_rays,
-                                 self.s.params.d_cam_m / self.s.params.resolution_m, seen)
+            kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], p.team_view_rays, reach_cells, counted, seen)
             team_sight = sight.copy()
-            team_sight[seen & (sight == kernels.UNKNOWN)] = kernels.SEEN_BY_TEAM
-            wi = np.array([r[1] for r in reported], np.int64)
-            wj = np.array([r[2] for r in reported], np.int64)
-            unseen_bit = kernels.observable_unknown(team_sight, wi, wj, self.s.params.info_rays,
-                                                    self.s.params.d_cam_m / self.s.params.resolution_m) * self.s.params.entropy_per_cell_bit
-            for (w, *_), left in zip(reported, unseen_bit):
-                (keep if left >= self.s.params.presence_keep_bit else dropped).append(w)
+            team_sight[seen] = kernels.SEEN_BY_TEAM
+            unseen_bit = kernels.observable_unknown(team_sight, wi, wj, p.info_rays, reach_cells) * p.entropy_per_cell_bit
+            for w, left in zip(reported, unseen_bit):
+                (keep if left >= p.presence_keep_bit else dropped).append(w)
         return keep, dropped
