@@ -15,7 +15,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy import ndimage
+import scipy.ndimage as ndimage
 
 from firmware import kernels
 from firmware.params import ExplorationParams
