@@ -138,6 +138,12 @@ def test_costs_to_many_points_are_cost_to_each_bit_for_bit(recs, data):
     assert t.costs_to(dist, xs, ys).tolist() == [t.cost_to(dist, x, y)[0] for x, y in points]
     nowhere = np.full(len(xy), np.inf)
     assert t.costs_to(nowhere, xs, ys).tolist() == [math.inf] * len(points)
+    # The same points again, from a teammate that reaches fewer vertices, then on a grown map.
+    fewer = np.where(np.arange(len(xy)) % 2 == 0, dist, np.inf)
+    assert t.costs_to(fewer, xs, ys).tolist() == [t.cost_to(fewer, x, y)[0] for x, y in points]
+    t.add(data.draw(records)[0])
+    _, dist, _ = t.costs_from(*xy[src])
+    assert t.costs_to(dist, xs, ys).tolist() == [t.cost_to(dist, x, y)[0] for x, y in points]
 
 
 def test_algorithm_1_merges_close_records_and_falls_back_when_disconnected():

@@ -80,6 +80,10 @@ def fold_records(rec, d_build_cm, d_connect_cm):
     for r in range(n):
         x = rec[r, 1]
         y = rec[r, 2]
+        if r > 0 and x == rec[r - 1, 1] and y == rec[r - 1, 2]:
+            # The place of the record before: it joined a vertex, or made one right here.
+            vertex_of[r] = vertex_of[r - 1]
+            continue
         cx = x // cell
         cy = y // cell
         best = -1
@@ -231,6 +235,8 @@ class TopoMap:
         self._words = [np.zeros(0, np.int64)] * 4
         self.edges = np.zeros((0, 2), np.int64)
         self._csr = (np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
+        self._lines_key: tuple[bytes, bytes] | None = None
+        self._lines_m = np.zeros((0, 0))
 
     # --- records --------------------------------------------------------------------
     def add(self, record: TopoRecord) -> bool:
@@ -274,6 +280,7 @@ class TopoMap:
         indptr = np.zeros(n + 1, np.int64)
         np.cumsum(np.bincount(src, minlength=n), out=indptr[1:])
         self._csr = (indptr, dst[order], w[order])
+        self._lines_key = None
 
     # --- the map --------------------------------------------------------------------
     def __len__(self) -> int:
@@ -373,11 +380,24 @@ class TopoMap:
         reached = np.isfinite(dist)
         if not reached.any() or len(xs_m) == 0:
             return np.full(len(xs_m), math.inf)
-        xy = self.positions()
-        line = np.hypot(xy[None, :, 0] - xs_m[:, None], xy[None, :, 1] - ys_m[:, None])
-        line[:, ~reached] = np.inf
+        line = self._lines_to(xs_m, ys_m)
+        if not reached.all():
+            line = line.copy()
+            line[:, ~reached] = np.inf
         k = np.argmin(line, axis=1)
         return dist[k] + line[np.arange(len(xs_m)), k]
+
+    def _lines_to(self, xs_m: np.ndarray, ys_m: np.ndarray) -> np.ndarray:
+        """Straight lines (m) from each point to every vertex, (points, vertices). The last
+        answer is kept until the map changes: a plan asks it for the same candidates once
+        for itself and once per teammate."""
+        self._ensure_built()
+        key = (xs_m.tobytes(), ys_m.tobytes())
+        if key != self._lines_key:
+            xy = self._xy_m
+            self._lines_m = np.hypot(xy[None, :, 0] - xs_m[:, None], xy[None, :, 1] - ys_m[:, None])
+            self._lines_key = key
+        return self._lines_m
 
     @staticmethod
     def path(parent: np.ndarray, dst: int) -> list[int]:
