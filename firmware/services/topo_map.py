@@ -81,7 +81,8 @@ def fold_records(rec, d_build_cm, d_connect_cm):
         x = rec[r, 1]
         y = rec[r, 2]
         if r > 0 and x == rec[r - 1, 1] and y == rec[r - 1, 2]:
-            # The place of the record before: it joined a vertex, or made one right here.
+            # Where the record before lies, and the vertices are as it left them: the same
+            # search would find the vertex it joined, or the one it made right here.
             vertex_of[r] = vertex_of[r - 1]
             continue
         cx = x // cell
