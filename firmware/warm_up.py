@@ -3,7 +3,8 @@
 The kernels compile on their first call (or load from numba's cache), which on a fresh
 install takes seconds: inside the first lidar and planning tasks that would be a start-up
 stall of the robot's real-time loop. warm_up runs one scan fold and one planning cycle's
-map work on a small synthetic room, open on one side, with the same types the firmware uses.
+map work on a small synthetic room, open on one side, and a small topological map, with the
+same types the firmware uses.
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from firmware.params import ExplorationParams
 from firmware.services.grid_paths import GridPaths
 from firmware.services.local_map import LocalMap
 from firmware.services.planner import count_frontiers
+from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
 
 _ROOM_RADIUS_M = 3.0
@@ -44,3 +46,9 @@ def warm_up(params: ExplorationParams) -> None:
     kernels.mark_visible(layers.sight, ij[inside, 0], ij[inside, 1], small.team_view_rays,
                          small.d_cam_m / small.resolution_m, layers.sight == kernels.UNKNOWN,
                          np.zeros(layers.sight.shape, bool))
+    # The topological map: a record folded, one more merged in, graph costs on the result.
+    topo = TopoMap(small.d_build_m, small.d_connect_m)
+    topo.add((0, 0, 0, 0, 1, 0, 0))
+    topo.positions()
+    topo.add((0, round(small.d_build_m * 100), 0, 0, 1, 0, 0))
+    topo.costs_from(0.0, 0.0)

@@ -6,7 +6,7 @@ import networkx as nx
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
-from firmware.services.topo_map import TopoMap, fold_records
+from firmware.services.topo_map import TopoMap, fold_records, merge_rows
 
 SETTINGS = settings(max_examples=60, deadline=None)
 
@@ -14,6 +14,13 @@ records = st.lists(
     st.tuples(st.integers(0, 200), st.integers(-800, 800), st.integers(-800, 800), st.just(0),
               st.integers(0, 1), st.integers(0, 255), st.integers(0, 127)),
     min_size=1, max_size=60)
+# Over the wire's whole 24-bit range, a few places (records often share one) far apart.
+WIRE_CM = st.integers(-(1 << 23), (1 << 23) - 1)
+far_records = st.lists(st.tuples(WIRE_CM, WIRE_CM), min_size=1, max_size=6).flatmap(
+    lambda places: st.lists(st.tuples(st.integers(0, 255), st.sampled_from(places), st.integers(-150, 150),
+                                      st.integers(-150, 150), st.integers(0, 1), st.integers(0, 255),
+                                      st.integers(0, 127)).map(
+        lambda r: (r[0], r[1][0] + r[2], r[1][1] + r[3], 0, r[4], r[5], r[6])), min_size=1, max_size=60))
 
 
 def reference_fold(recs, d_build_cm, d_connect_cm):
@@ -44,7 +51,7 @@ def reference_fold(recs, d_build_cm, d_connect_cm):
 
 
 @SETTINGS
-@given(records)
+@given(st.one_of(records, far_records))
 def test_fold_matches_algorithm_1_reference(recs):
     rec = np.array(recs, np.int64)
     vx, vy, _vz, ids, e, edges, lengths, *_words = fold_records(rec, 100, 250)
@@ -65,8 +72,11 @@ def test_map_is_a_function_of_the_record_set(recs, rnd, data):
     shuffled = list(recs) + data.draw(st.lists(st.sampled_from(recs), max_size=20))  # duplicates
     rnd.shuffle(shuffled)
     b = TopoMap(1.0, 2.5)
-    for r in shuffled:
+    looks = set(data.draw(st.lists(st.integers(0, len(shuffled) - 1), max_size=6)))
+    for i, r in enumerate(shuffled):
         b.add(r)
+        if i in looks:
+            b.positions()   # built in steps: what came since is merged into the records held
     assert np.array_equal(a.positions(), b.positions())
     assert np.array_equal(a.e_inf_codes(), b.e_inf_codes())
     assert np.array_equal(a.edges, b.edges)
@@ -77,6 +87,16 @@ def test_map_is_a_function_of_the_record_set(recs, rnd, data):
     sa, da, _ = a.costs_from(x, y)
     sb, db, _ = b.costs_from(x, y)
     assert sa == sb and np.array_equal(da, db)
+
+
+@SETTINGS
+@given(records, st.data())
+def test_merge_rows_orders_two_sorted_sets_as_sorting_their_union(recs, data):
+    union = sorted(set(recs))
+    split = data.draw(st.lists(st.booleans(), min_size=len(union), max_size=len(union)))
+    a = np.array([r for r, left in zip(union, split) if left], np.int64).reshape(-1, 7)
+    b = np.array([r for r, left in zip(union, split) if not left], np.int64).reshape(-1, 7)
+    assert merge_rows(a, b).tolist() == [list(r) for r in union]
 
 
 def map_of(recs) -> TopoMap:
@@ -118,6 +138,12 @@ def test_costs_to_many_points_are_cost_to_each_bit_for_bit(recs, data):
     assert t.costs_to(dist, xs, ys).tolist() == [t.cost_to(dist, x, y)[0] for x, y in points]
     nowhere = np.full(len(xy), np.inf)
     assert t.costs_to(nowhere, xs, ys).tolist() == [math.inf] * len(points)
+    # The same points again, from a teammate that reaches fewer vertices, then on a grown map.
+    fewer = np.where(np.arange(len(xy)) % 2 == 0, dist, np.inf)
+    assert t.costs_to(fewer, xs, ys).tolist() == [t.cost_to(fewer, x, y)[0] for x, y in points]
+    t.add(data.draw(records)[0])
+    _, dist, _ = t.costs_from(*xy[src])
+    assert t.costs_to(dist, xs, ys).tolist() == [t.cost_to(dist, x, y)[0] for x, y in points]
 
 
 def test_algorithm_1_merges_close_records_and_falls_back_when_disconnected():

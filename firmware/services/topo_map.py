@@ -35,12 +35,14 @@ from numba import njit
 TOPO_FIELDS = ("sender_id", "x_cm", "y_cm", "z_cm", "presence", "e_inf_code", "info_version")
 TopoRecord = tuple[int, int, int, int, int, int, int]
 
-_CELL_OFFSET = 1 << 20
-
-
 @njit(cache=True)
-def _cell_key(cx, cy):
-    return (cx + _CELL_OFFSET) * (1 << 22) + (cy + _CELL_OFFSET)
+def _grid_slot(cell_x, cell_y, slot_x, slot_y, slot_head, mask):
+    """The slot of cell (x, y) in the open-addressing table, or the empty slot where it goes."""
+    h = (cell_x * 73856093) ^ (cell_y * 19349663)
+    h = (h ^ (h >> 17)) & mask
+    while slot_head[h] >= 0 and (slot_x[h] != cell_x or slot_y[h] != cell_y):
+        h = (h + 1) & mask
+    return h
 
 
 @njit(cache=True)
@@ -49,23 +51,26 @@ def fold_records(rec, d_build_cm, d_connect_cm):
 
     Returns vertex positions (cm), id bitmasks (4 x 64 bits per vertex), e_inf codes, the
     edges (u, v, length in cm) with u > v, and each sender's latest word per vertex as
-    parallel arrays (vertex, sender, revision, e_inf code). A uniform grid of d_build cells
-    finds the closest vertex: any vertex closer than d_build lies in the 3 x 3 cells around
-    a record.
+    parallel arrays (vertex, sender, revision, e_inf code), in the order of their first
+    records. A uniform grid of d_build cells finds the closest vertex: any vertex closer
+    than d_build lies in the 3 x 3 cells around a record. The grid's cells are a hash table
+    (a cell holds its vertices as a linked list, newest first) because records may lie
+    anywhere in the wire's range.
     """
     n = rec.shape[0]
     vx = np.empty(n, np.int64)
     vy = np.empty(n, np.int64)
     vz = np.empty(n, np.int64)
-    ids = np.zeros((n, 4), np.uint64)
+    vertex_of = np.empty(n, np.int64)
     nxt = np.full(n, -1, np.int64)
-    heads = dict()
-    heads[np.int64(-1)] = np.int64(-1)
-    # (vertex * 256 + sender) -> that sender's highest revision there and its e_inf code.
-    latest_version = dict()
-    latest_code = dict()
-    latest_version[np.int64(-1)] = np.int64(-1)
-    latest_code[np.int64(-1)] = np.int64(-1)
+    # At most one cell per vertex, so the table stays at most half full.
+    size = 2
+    while size < 2 * n:
+        size *= 2
+    mask = size - 1
+    slot_x = np.zeros(size, np.int64)
+    slot_y = np.zeros(size, np.int64)
+    slot_head = np.full(size, -1, np.int64)
     eu = []
     ev = []
     ew = []
@@ -73,17 +78,20 @@ def fold_records(rec, d_build_cm, d_connect_cm):
     cell = d_build_cm
     reach = int(math.ceil(d_connect_cm / cell))
     for r in range(n):
-        sender = rec[r, 0]
         x = rec[r, 1]
         y = rec[r, 2]
+        if r > 0 and x == rec[r - 1, 1] and y == rec[r - 1, 2]:
+            # Where the record before lies, and the vertices are as it left them: the same
+            # search would find the vertex it joined, or the one it made right here.
+            vertex_of[r] = vertex_of[r - 1]
+            continue
         cx = x // cell
         cy = y // cell
         best = -1
         best_d2 = 0.0
         for gx in range(cx - 1, cx + 2):
             for gy in range(cy - 1, cy + 2):
-                key = _cell_key(gx, gy)
-                v = heads[key] if key in heads else -1
+                v = slot_head[_grid_slot(gx, gy, slot_x, slot_y, slot_head, mask)]
                 while v >= 0:
                     dx = float(vx[v] - x)
                     dy = float(vy[v] - y)
@@ -93,57 +101,67 @@ def fold_records(rec, d_build_cm, d_connect_cm):
                         best_d2 = d2
                     v = nxt[v]
         if best >= 0 and math.sqrt(best_d2) < d_build_cm:
-            k = best
-        else:
-            k = count
-            count += 1
-            vx[k] = x
-            vy[k] = y
-            vz[k] = rec[r, 3]
-            for gx in range(cx - reach, cx + reach + 1):
-                for gy in range(cy - reach, cy + reach + 1):
-                    key = _cell_key(gx, gy)
-                    v = heads[key] if key in heads else -1
-                    while v >= 0:
-                        dx = float(vx[v] - x)
-                        dy = float(vy[v] - y)
-                        d = math.sqrt(dx * dx + dy * dy)
-                        if d <= d_connect_cm:
-                            eu.append(k)
-                            ev.append(v)
-                            ew.append(d)
-                        v = nxt[v]
-            key = _cell_key(cx, cy)
-            nxt[k] = heads[key] if key in heads else -1
-            heads[key] = k
+            vertex_of[r] = best
+            continue
+        k = count
+        count += 1
+        vertex_of[r] = k
+        vx[k] = x
+        vy[k] = y
+        vz[k] = rec[r, 3]
+        for gx in range(cx - reach, cx + reach + 1):
+            for gy in range(cy - reach, cy + reach + 1):
+                v = slot_head[_grid_slot(gx, gy, slot_x, slot_y, slot_head, mask)]
+                while v >= 0:
+                    dx = float(vx[v] - x)
+                    dy = float(vy[v] - y)
+                    d = math.sqrt(dx * dx + dy * dy)
+                    if d <= d_connect_cm:
+                        eu.append(k)
+                        ev.append(v)
+                        ew.append(d)
+                    v = nxt[v]
+        h = _grid_slot(cx, cy, slot_x, slot_y, slot_head, mask)
+        slot_x[h] = cx
+        slot_y[h] = cy
+        nxt[k] = slot_head[h]
+        slot_head[h] = k
+    # Presence bits and each sender's highest revision per vertex (ties: the lower code);
+    # a vertex keeps its words as a linked list, as few senders speak for one place.
+    ids = np.zeros((count, 4), np.uint64)
+    e = np.full(count, 255, np.int64)
+    w_vertex = np.empty(n, np.int64)
+    w_sender = np.empty(n, np.int64)
+    w_version = np.empty(n, np.int64)
+    w_code = np.empty(n, np.int64)
+    w_next = np.empty(n, np.int64)
+    w_head = np.full(count, -1, np.int64)
+    words = 0
+    for r in range(n):
+        k = vertex_of[r]
+        sender = rec[r, 0]
         if rec[r, 4] != 0:
             ids[k, sender >> 6] |= np.uint64(1) << np.uint64(sender & 63)
-        word = k * 256 + sender
         version = rec[r, 6]
         code = rec[r, 5]
-        if word not in latest_version or version > latest_version[word] \
-                or (version == latest_version[word] and code < latest_code[word]):
-            latest_version[word] = version
-            latest_code[word] = code
-    e = np.full(count, 255, np.int64)
-    words = len(latest_version) - 1
-    w_vertex = np.empty(words, np.int64)
-    w_sender = np.empty(words, np.int64)
-    w_version = np.empty(words, np.int64)
-    w_code = np.empty(words, np.int64)
-    i = 0
-    for word, version in latest_version.items():
-        if word < 0:
-            continue
-        code = latest_code[word]
-        v = word // 256
-        w_vertex[i] = v
-        w_sender[i] = word - v * 256
-        w_version[i] = version
-        w_code[i] = code
-        if code < e[v]:
-            e[v] = code
-        i += 1
+        w = w_head[k]
+        while w >= 0 and w_sender[w] != sender:
+            w = w_next[w]
+        if w < 0:
+            w = words
+            words += 1
+            w_vertex[w] = k
+            w_sender[w] = sender
+            w_version[w] = version
+            w_code[w] = code
+            w_next[w] = w_head[k]
+            w_head[k] = w
+        elif version > w_version[w] or (version == w_version[w] and code < w_code[w]):
+            w_version[w] = version
+            w_code[w] = code
+    for w in range(words):
+        if w_code[w] < e[w_vertex[w]]:
+            e[w_vertex[w]] = w_code[w]
     m = len(eu)
     edges = np.empty((m, 2), np.int64)
     lengths = np.empty(m, np.float64)
@@ -151,8 +169,31 @@ def fold_records(rec, d_build_cm, d_connect_cm):
         edges[i, 0] = eu[i]
         edges[i, 1] = ev[i]
         lengths[i] = ew[i]
-    return (vx[:count].copy(), vy[:count].copy(), vz[:count].copy(), ids[:count].copy(), e, edges, lengths,
-            w_vertex, w_sender, w_version, w_code)
+    return (vx[:count].copy(), vy[:count].copy(), vz[:count].copy(), ids, e, edges, lengths,
+            w_vertex[:words].copy(), w_sender[:words].copy(), w_version[:words].copy(), w_code[:words].copy())
+
+
+@njit(cache=True)
+def merge_rows(a, b):
+    """The rows of a and b, each sorted lexicographically and none in both, in one
+    lexicographic order (as sorting their tuples would order them)."""
+    out = np.empty((a.shape[0] + b.shape[0], a.shape[1]), a.dtype)
+    i = 0
+    j = 0
+    for r in range(out.shape[0]):
+        take_a = j == b.shape[0]
+        if not take_a and i < a.shape[0]:
+            for c in range(a.shape[1]):
+                if a[i, c] != b[j, c]:
+                    take_a = a[i, c] < b[j, c]
+                    break
+        if take_a:
+            out[r] = a[i]
+            i += 1
+        else:
+            out[r] = b[j]
+            j += 1
+    return out
 
 
 @njit(cache=True)
@@ -195,6 +236,8 @@ class TopoMap:
         self._words = [np.zeros(0, np.int64)] * 4
         self.edges = np.zeros((0, 2), np.int64)
         self._csr = (np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
+        self._lines_key: tuple[bytes, bytes] | None = None
+        self._lines_m = np.zeros((0, 0))
 
     # --- records --------------------------------------------------------------------
     def add(self, record: TopoRecord) -> bool:
@@ -216,10 +259,11 @@ class TopoMap:
     def _ensure_built(self) -> None:
         if not self._new:
             return
-        rec = np.concatenate([self._sorted, np.array(self._new, np.int64).reshape(-1, len(TOPO_FIELDS))])
+        new = np.array(self._new, np.int64).reshape(-1, len(TOPO_FIELDS))
         self._new = []
-        # Lexicographic over the fields, as sorting the tuples would order them.
-        rec = rec[np.lexsort(rec.T[::-1])]
+        # Lexicographic over the fields, as sorting the tuples would order them; the records
+        # held are in that order already, so only the new ones are sorted.
+        rec = merge_rows(self._sorted, new[np.lexsort(new.T[::-1])])
         self._sorted = rec
         vx, vy, _vz, ids, e, edges, lengths, *words = fold_records(rec, self.d_build_cm, self.d_connect_cm)
         self._words = words
@@ -229,13 +273,15 @@ class TopoMap:
         self.edges = edges
         n = len(vx)
         # Symmetric CSR, neighbours in ascending order so Dijkstra's ties are reproducible.
+        # An edge is listed once, so (src, dst) pairs are distinct and one key orders them.
         src = np.concatenate([edges[:, 0], edges[:, 1]])
         dst = np.concatenate([edges[:, 1], edges[:, 0]])
         w = np.concatenate([lengths, lengths]) / 100.0
-        order = np.lexsort((dst, src))
+        order = np.argsort(src * n + dst, kind="stable")
         indptr = np.zeros(n + 1, np.int64)
         np.cumsum(np.bincount(src, minlength=n), out=indptr[1:])
-        self._csr = (indptr, dst[order].astype(np.int64), w[order])
+        self._csr = (indptr, dst[order], w[order])
+        self._lines_key = None
 
     # --- the map --------------------------------------------------------------------
     def __len__(self) -> int:
@@ -335,11 +381,24 @@ class TopoMap:
         reached = np.isfinite(dist)
         if not reached.any() or len(xs_m) == 0:
             return np.full(len(xs_m), math.inf)
-        xy = self.positions()
-        line = np.hypot(xy[None, :, 0] - xs_m[:, None], xy[None, :, 1] - ys_m[:, None])
-        line[:, ~reached] = np.inf
+        line = self._lines_to(xs_m, ys_m)
+        if not reached.all():
+            line = line.copy()
+            line[:, ~reached] = np.inf
         k = np.argmin(line, axis=1)
         return dist[k] + line[np.arange(len(xs_m)), k]
+
+    def _lines_to(self, xs_m: np.ndarray, ys_m: np.ndarray) -> np.ndarray:
+        """Straight lines (m) from each point to every vertex, (points, vertices). The last
+        answer is kept until the map changes: a plan asks it for the same candidates once
+        for itself and once per teammate."""
+        self._ensure_built()
+        key = (xs_m.tobytes(), ys_m.tobytes())
+        if key != self._lines_key:
+            xy = self._xy_m
+            self._lines_m = np.hypot(xy[None, :, 0] - xs_m[:, None], xy[None, :, 1] - ys_m[:, None])
+            self._lines_key = key
+        return self._lines_m
 
     @staticmethod
     def path(parent: np.ndarray, dst: int) -> list[int]:

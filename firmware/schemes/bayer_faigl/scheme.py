@@ -183,9 +183,9 @@ class BayerFaigl(Scheme):
         idx, xy, e = self._vertex_information()
         if not len(idx):
             return
-        revision, said = self.s.topo.word_of(self.s.robot_id)
-        for k, (x, y), e_bit in zip(idx, xy, e):
-            self._say_information(x, y, e_inf_bit_to_code(float(e_bit)), int(revision[k]), int(said[k]))
+        revision, said = (a.tolist() for a in self.s.topo.word_of(self.s.robot_id))
+        for k, (x, y), e_bit in zip(idx.tolist(), xy.tolist(), e.tolist()):
+            self._say_information(x, y, e_inf_bit_to_code(e_bit), revision[k], said[k])
 
     def _settle_team_places(self) -> None:
         """A teammate's place that promised information (e_inf > 0) but where this robot's own
