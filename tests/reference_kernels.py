@@ -9,37 +9,47 @@ import math
 import numpy as np
 
 
+def bearing_bin(dx, dy, bin0, binw, n):
+    """The bin of direction (dx, dy): bins binw wide, bin 0 centred on bin0 in [0, 2 pi)."""
+    a = math.atan2(dy, dx) - bin0
+    while a < 0:
+        a += 2 * math.pi
+    return int(a / binw + 0.5) % n
+
+
 def polar_fill(logodds, row0, col0, res, px, py, bin0, binw, ranges, range_max, hit, miss, lmin, lmax,
                r_lo, r_hi, c_lo, c_hi):
-    out = logodds.astype(np.float64).copy()
+    """Each cell on its own, with its own bearing, in the kernel's arithmetic (squared
+    distances, float64 sums stored to the window's dtype) so that the two agree to the bit."""
+    out = logodds.copy()
     rows, cols = out.shape
     n = len(ranges)
-    for i in range(max(r_lo, 0), min(r_hi, rows)):
-        for j in range(max(c_lo, 0), min(c_hi, cols)):
+    bin0 = bin0 % (2 * math.pi)
+    longest = min(max([0.0] + [float(r) for r in ranges if r > 0]), range_max)
+    reach = longest + res
+    for i in range(max(r_lo, math.floor((py - reach) / res) - row0, 0),
+                   min(r_hi, math.floor((py + reach) / res) - row0 + 1, rows)):
+        for j in range(max(c_lo, math.floor((px - reach) / res) - col0, 0),
+                       min(c_hi, math.floor((px + reach) / res) - col0 + 1, cols)):
             cx = (col0 + j + 0.5) * res - px
             cy = (row0 + i + 0.5) * res - py
-            d = math.hypot(cx, cy)
-            longest = min(max(ranges), range_max)
-            if d >= longest:
+            d2 = cx * cx + cy * cy
+            if float(out[i, j]) <= lmin or d2 >= longest * longest:
                 continue
-            a = math.atan2(cy, cx) - bin0 % (2 * math.pi)
-            while a < 0:
-                a += 2 * math.pi
-            b = int(math.floor(a / binw + 0.5)) % n
-            r = ranges[b]
+            r = float(ranges[bearing_bin(cx, cy, bin0, binw, n)])
             if not r > 0:
                 continue
             limit = r if r >= range_max else r - res / 2
-            if d < limit:
-                out[i, j] = max(lmin, out[i, j] + miss)
+            if d2 < limit * limit and limit > 0:
+                out[i, j] = max(lmin, float(out[i, j]) + miss)
     for b, r in enumerate(ranges):
         if not r > 0 or r >= range_max:
             continue
-        a = bin0 % (2 * math.pi) + b * binw
-        i = int(math.floor((py + (r + res / 2) * math.sin(a)) / res)) - row0
-        j = int(math.floor((px + (r + res / 2) * math.cos(a)) / res)) - col0
+        a = bin0 + b * binw
+        i = math.floor((py + (r + res / 2) * math.sin(a)) / res) - row0
+        j = math.floor((px + (r + res / 2) * math.cos(a)) / res) - col0
         if r_lo <= i < r_hi and c_lo <= j < c_hi and 0 <= i < rows and 0 <= j < cols:
-            out[i, j] = min(lmax, out[i, j] + hit)
+            out[i, j] = min(lmax, float(out[i, j]) + hit)
     return out
 
 
