@@ -393,9 +393,12 @@ def test_parallel_kernels_give_the_same_bits_on_one_thread_and_on_all(scan, stat
 
 
 WARM_UP_CHECK = """
-import importlib, pkgutil, firmware
+import importlib, pathlib, firmware
 from numba.core.registry import CPUDispatcher
-modules = [importlib.import_module(m.name) for m in pkgutil.walk_packages(firmware.__path__, 'firmware.')]
+# Every module file, namespace packages included (pkgutil.walk_packages skips those).
+root = pathlib.Path(firmware.__path__[0])
+modules = [importlib.import_module('.'.join(('firmware',) + f.relative_to(root).with_suffix('').parts))
+           for f in sorted(root.rglob('*.py')) if f.name != '__init__.py']
 def compiled():
     return {f'{m.__name__}.{k}': len(v.signatures) for m in modules for k, v in vars(m).items()
             if isinstance(v, CPUDispatcher)}
