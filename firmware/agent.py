@@ -173,10 +173,12 @@ class ExplorerAgent:
         if scan is None or self.done:
             return
         pose = self.pose.read()
+        # The pose when the scan was taken, not now: a LiDAR's scans arrive on its own clock.
+        x_m, y_m, yaw_rad = self.pose.pose_at(scan.stamp_us)
         self.local_map.follow(pose.x_m, pose.y_m)
-        self.local_map.integrate_scan(pose.x_m, pose.y_m, pose.yaw_rad, scan.angle_min_rad,
+        self.local_map.integrate_scan(x_m, y_m, yaw_rad, scan.angle_min_rad,
                                       scan.angle_increment_rad, scan.ranges_m, scan.range_max_m)
-        self._last_scan = (pose.x_m, pose.y_m, pose.yaw_rad, scan)
+        self._last_scan = (x_m, y_m, yaw_rad, scan)
         self.scans += 1
 
     def _binned_last_scan(self) -> BinnedScan:

@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 
 from firmware.agent import STALLS_BEFORE_CLOSING_A_GAP, ExplorerAgent
+from firmware.services.local_map import LocalMap
 from firmware.services.waypoints import Waypoint
 from hal.bundle import Hal
 from hal.lora import profile
+from hal.samples import OdometrySample
 from tests.doubles import ScriptedHal, StepClock
 
 
@@ -144,3 +146,31 @@ def test_a_scheme_that_needs_relaying_gets_a_link_that_floods():
     relaying = ExplorerAgent(fake.hal(), scheme=Gossip(), radio_profile=profile("eu868-g3"))
     plain = ExplorerAgent(fake.hal(), scheme="bayer-faigl:minpos", radio_profile=profile("eu868-g3"))
     assert relaying.link.relay_hop_limit == 4 and plain.link.relay_hop_limit == 0
+
+
+class LateLidarOnRails(ScriptedHal):
+    """A robot whose odometry runs along x at 1 m/s and whose LiDAR hands over each scan
+    60 ms after it was taken (a real LiDAR's own clock and a USB hop)."""
+
+    LATE_US = 60_000
+
+    def latest_scan(self):
+        scan = super().latest_scan()
+        return None if scan is None or self.t_us < self.LATE_US else \
+            dataclasses.replace(scan, stamp_us=self.t_us - self.LATE_US)
+
+    def read(self):
+        return OdometrySample(self.t_us, self.t_us * 1e-6, 0.0, 0.0, 1.0, 0.0)
+
+
+def test_a_scan_is_folded_at_the_pose_of_its_own_time():
+    fake = LateLidarOnRails(np.full(360, 2.0))
+    agent = ExplorerAgent(fake.hal(), scheme="independent")
+    agent.setup()
+    while agent.scans == 0:
+        agent.tick()
+        fake.t_us += 50_000
+    scan_time_us = fake.t_us - 50_000 - LateLidarOnRails.LATE_US
+    expected = LocalMap(agent.p, 0.0, 0.0)
+    expected.integrate_scan(scan_time_us * 1e-6, 0.0, 0.0, -np.pi, 2 * np.pi / 360, fake.ranges_m, 10.0)
+    assert np.array_equal(agent.local_map.logodds, expected.logodds)
