@@ -12,6 +12,7 @@ import pytest
 from firmware.comms.frame import decode_frame
 from firmware.params import ExplorationParams, TaskRates
 from host_tools.mission import WALL_TIME_KEYS, MissionConfig, run_mission
+from world_sim.world import WorldParams
 
 
 def _deterministic(result) -> dict:
@@ -231,3 +232,15 @@ def test_cli_run_takes_a_start_pose_per_robot(tmp_path):
     out = _cli("run", "--map", m, "--robots", "3", "--start", "3,3", "--start", "12,3", "--quiet")
     assert out.returncode == 2
     assert "--start given 2 times: give it once (the staging area) or once per robot (3" in out.stderr
+
+
+def test_a_lidar_on_its_own_clock_still_maps_true():
+    """Scans at 9.7 Hz land between the 20 Hz ticks and reach the firmware up to a tick
+    late; each is folded at the pose of its own time, so the cave is mapped as it is and the
+    mission ends. (Folded at the pose of the tick instead, the turning robot smears walls
+    across the free space and the same mission runs out of time.)"""
+    result = run_mission(MissionConfig(map_spec="cave:3:30x30", robots=1, seed=0, max_sim_s=600),
+                         world_params=WorldParams(lidar_rate_hz=9.7))
+    report = result.to_json()
+    assert report["termination"] == "complete"
+    assert report["coverage"] >= 0.99 and report["robots_in_wall"] == 0
