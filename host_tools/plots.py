@@ -11,6 +11,15 @@ import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
 ROBOT_COLOURS = plt.get_cmap("tab10").colors
+# Beyond this many robots the colours repeat and a legend entry per robot would bury the map:
+# the figure names the team's range instead.
+MAX_LEGEND_ROBOTS = len(ROBOT_COLOURS)
+
+
+def _legend(ax, robots: int, fontsize: int) -> None:
+    """A legend entry per robot, when there are few enough to tell apart."""
+    if robots <= MAX_LEGEND_ROBOTS and ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper right", fontsize=fontsize)
 
 
 def _background(ax, occ, observed=None) -> None:
@@ -37,9 +46,11 @@ def plot_mission(result, path: Path) -> None:
         c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
         ax.plot(t[:, 0], t[:, 1], color=c, lw=1.0, label=f"robot {i}: {result.path_length_m[i]:.0f} m")
         ax.plot(t[0, 0], t[0, 1], "o", color=c, ms=5)
+    team = "" if len(result.trajectories) <= MAX_LEGEND_ROBOTS else \
+        f"\n{len(result.trajectories)} robots, paths {min(result.path_length_m):.0f} to {max(result.path_length_m):.0f} m"
     ax.set_title(f"{result.map_label}: observed {result.coverage * 100:.1f} % of reachable free area, "
-                 f"T_total {result.t_total_s:.0f} s ({result.termination})", fontsize=10)
-    ax.legend(loc="upper right", fontsize=8)
+                 f"T_total {result.t_total_s:.0f} s ({result.termination}){team}", fontsize=10)
+    _legend(ax, len(result.trajectories), 8)
     ax = axes[1]
     _background(ax, occ)
     title = "what the robots' scheme shares: nothing"
@@ -57,8 +68,7 @@ def plot_mission(result, path: Path) -> None:
             marked = np.asarray(geometry.get("highlight", np.zeros(len(xy), bool)), bool)
             ax.scatter(xy[marked, 0], xy[marked, 1], s=14, facecolors="none", edgecolors="red", lw=0.5)
     ax.set_title(title, fontsize=10)
-    if ax.get_legend_handles_labels()[0]:
-        ax.legend(loc="upper right", fontsize=8)
+    _legend(ax, len(result.agents), 8)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -73,7 +83,7 @@ def _draw_paths(ax, occ, trial: dict, legend: bool) -> None:
         if len(xy):
             ax.plot(xy[0, 0], xy[0, 1], "o", color=c, ms=4 if legend else 2)
     if legend:
-        ax.legend(loc="upper right", fontsize=7)
+        _legend(ax, len(trial["paths_xy"]), 7)
 
 
 def plot_sweep_paths(occ, label: str, trial: dict, path: Path) -> None:
