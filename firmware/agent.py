@@ -26,7 +26,7 @@ from firmware.schemes import all_dialects, build
 from firmware.schemes.base import NEEDS, PRIORITY_STATUS, Scheme, Services
 from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.services.motion import PathFollower, StallDetector
-from firmware.services.planner import Planner
+from firmware.services.planner import FrontiersLeft, Planner
 from firmware.services.pose import SHARED_FRAME, PoseService
 from firmware.services.recovery import Recovery, clear_behind
 from firmware.services.roster import Roster
@@ -131,12 +131,18 @@ class ExplorerAgent:
 
     def stats(self) -> dict[str, int]:
         """How this robot's targets ended, the frontiers it stopped short of (0 while it
-        explores), its bumps, and the scheme's own counters."""
+        explores: those it gave up on, and those behind gaps narrower than its body), its
+        bumps, and the scheme's own counters."""
         c = self.targets.counts
         return {"targets_reached": c["reached"], "targets_seen_on_way": c["seen_on_way"],
                 "targets_unreachable": c["unreachable"], "targets_stalled": c["stalled"],
-                "unreachable_frontiers": self.planner.frontiers.unreachable,
+                "unreachable_frontiers": len(self.planner.frontiers.given_up),
+                "narrow_gap_frontiers": len(self.planner.frontiers.behind_gaps),
                 **self.recovery.counts, **self.scheme.stats(), "bumps": self.bumps}
+
+    def frontiers_left(self) -> FrontiersLeft:
+        """What this robot left behind when it stopped (empty while it explores)."""
+        return self.planner.frontiers
 
     def memory_bytes(self) -> dict[str, int]:
         return {"local_map_bytes": int(self.local_map.logodds.nbytes),
@@ -255,8 +261,9 @@ class ExplorerAgent:
             self.follower.clear()
             self.hal.drive.command(0.0, 0.0)
             self.done = True
-            # Nothing left that this robot can get to; say so if frontiers it could not reach remain.
-            self.status = "complete_with_unreachable_frontiers" if self.planner.frontiers.unreachable else "complete"
+            # Nothing left that this robot can get to; say so if it gave up on frontiers its
+            # body could reach (frontiers behind gaps narrower than the body are no way on).
+            self.status = "complete_with_unreachable_frontiers" if self.planner.frontiers.given_up else "complete"
             if self.link is not None:
                 self._send_heartbeat(pose)
             return

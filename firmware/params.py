@@ -120,6 +120,10 @@ class ExplorationParams:
     # ... counted at most this often (the planning period)
     unreachable_strike_interval_s: float = _p(1.0, 's', 0.0, 3600.0, 'strikes are counted at most this often')
     escape_radius_m: float = _p(0.8, 'm', 0.0, 50.0, 'how far to look for a traversable cell to start from')
+    # The whole map (services.known_map: the window and every paged-out tile) routes to places the
+    # window and the graph cannot, and finds what is left before a robot stops; it is derived
+    # again when older than this or once the robot has moved recenter_distance_m.
+    known_map_refresh_s: float = _p(10.0, 's', 0.0, 3600.0, 'the whole map is derived again when this old')
     stuck_after_s: float = _p(0.5, 's', 0.0, 3600.0, 'driving without moving this long marks an obstacle (0: off)')
     # ... or, if the LiDAR shows it, path points are not cut this far
     follow_closely_after_stall_m: float = _p(1.0, 'm', 0.0, 50.0, 'after a stall, path points are not cut this far')

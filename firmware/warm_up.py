@@ -16,7 +16,7 @@ from firmware import kernels
 from firmware.params import ExplorationParams
 from firmware.services.grid_paths import GridPaths
 from firmware.services.local_map import LocalMap
-from firmware.services.planner import count_frontiers
+from firmware.services.known_map import KnownMap, find_frontiers
 from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
 
@@ -40,7 +40,12 @@ def warm_up(params: ExplorationParams) -> None:
         paths.settle_below(10.0)
         paths.path(i, j + 10)
         WaypointSet(small).update(local_map, layers.sight, paths.reachable)
-        count_frontiers(layers.sight, paths.reachable, small)
+        find_frontiers(layers.sight, paths.reachable, small)
+    # Everything mapped, as a robot about to stop (or without a route) plans on it.
+    known = KnownMap(small, local_map)
+    known.refresh(0.0, 0.0, 0)
+    known.route(1.0, 0.0)
+    known.frontiers()
     # A teammate's view, as Bayer & Faigl's presence rule casts it.
     ij, inside = local_map.cells_of(np.array([[1.0, 0.0]]))
     kernels.mark_visible(layers.sight, ij[inside, 0], ij[inside, 1], small.team_view_rays,

@@ -120,12 +120,18 @@ def _receptions(fates: dict[str, int], frames_sent: int) -> str:
 
 
 def _frontiers_left(r: dict) -> str:
-    """'; 3 frontiers the robots could not reach (0.8 m² of frontier cells)', or ''."""
+    """'; 3 frontiers the robots could not reach (0.8 m² of frontier cells); 2 behind gaps
+    narrower than the body (0.5 m²)', or the parts of it that are not zero."""
+    out = ""
     count = sum(r.get("unreachable_frontiers", []))
-    if not count:
-        return ""
-    return (f"; {count} frontier{'s' if count > 1 else ''} the robots could not reach "
-            f"({sum(r['unreachable_frontier_area_m2']):.1f} m² of frontier cells)")
+    if count:
+        out += (f"; {count} frontier{'s' if count > 1 else ''} the robots could not reach "
+                f"({sum(r['unreachable_frontier_area_m2']):.1f} m² of frontier cells)")
+    narrow = sum(r.get("narrow_gap_frontiers", []))
+    if narrow:
+        out += (f"; {narrow} frontier{'s' if narrow > 1 else ''} behind gaps narrower than the body "
+                f"({sum(r['narrow_gap_frontier_area_m2']):.1f} m²)")
+    return out
 
 
 def format_summary(r: dict) -> str:

@@ -19,6 +19,7 @@ import numpy as np
 from firmware.agent import ExplorerAgent
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import TaskProfiler
+from firmware.services.planner import FrontiersLeft
 from firmware.schemes import build as build_scheme
 from hal.lora import profile as radio_profile
 from hal.sim.clock import SimClock
@@ -119,8 +120,12 @@ class MissionResult:
             "t_90_s": None if self.t_90_s is None else round(self.t_90_s, 3),
             "termination": self.termination,
             "robot_status": self.robot_status,
-            "unreachable_frontiers": [a.planner.frontiers.unreachable for a in self.agents],
-            "unreachable_frontier_area_m2": [round(a.planner.frontiers.unreachable_area_m2, 2) for a in self.agents],
+            "unreachable_frontiers": [len(a.frontiers_left().given_up) for a in self.agents],
+            "unreachable_frontier_area_m2": [round(FrontiersLeft.area_m2(a.frontiers_left().given_up), 2)
+                                             for a in self.agents],
+            "narrow_gap_frontiers": [len(a.frontiers_left().behind_gaps) for a in self.agents],
+            "narrow_gap_frontier_area_m2": [round(FrontiersLeft.area_m2(a.frontiers_left().behind_gaps), 2)
+                                            for a in self.agents],
             "reachable_area_m2": round(self.reachable_area_m2, 2),
             "robots_in_wall": self.robots_in_wall,
             "blocked_moves": self.blocked_moves,
@@ -265,9 +270,11 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
 
 
 def _termination(agents: list[ExplorerAgent], interrupted: bool) -> str:
-    """"complete" when every robot stopped with nothing left it could reach and no frontier
-    it could not; "complete_with_unreachable_frontiers" when every robot stopped but some
-    knew of frontiers beyond where its body can go; else why the mission was cut short."""
+    """"complete" when every robot stopped with no frontier left that its body could reach
+    in all it had mapped; "complete_with_unreachable_frontiers" when every robot stopped but
+    some gave up on such frontiers (its map showed a way, it failed to get there); else why
+    the mission was cut short. Frontiers behind gaps narrower than the body are counted
+    (narrow_gap_frontiers) but are no way on."""
     if all(a.done for a in agents):
         return "complete" if all(a.status == "complete" for a in agents) else "complete_with_unreachable_frontiers"
     return "interrupted" if interrupted else "time_limit"

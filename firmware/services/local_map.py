@@ -70,6 +70,10 @@ class TilePager:
             if tile is not None:
                 window[g0 - row0:g1 - row0, h0 - col0:h1 - col0] = tile[g0 - ti * t:g1 - ti * t, h0 - tj * t:h1 - tj * t]
 
+    def tile_keys(self):
+        """(tile row, tile col) of every tile held."""
+        return self._tiles.keys()
+
     def tiles_within(self, r_lo: int, r_hi: int, c_lo: int, c_hi: int, dtype) -> list[tuple[np.ndarray, int, int]]:
         """(tile, its global row0, col0) for every tile cut by the global cell rectangle,
         created if missing, for folding a scan into places outside the window."""
@@ -295,25 +299,51 @@ class LocalMap:
         their cells' centres (the most room there can be)."""
         p = self.p
         state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
-        for bx, by in self.bumps:
-            i, j = self.cell_of(bx, by)
-            if 0 <= i < self.n and 0 <= j < self.n:
-                state[i, j] = kernels.OCCUPIED
+        self._mark_bumps(state, self.row0, self.col0)
         fit = self._fits[tight].update(state, self.row0, self.col0)
         traversable = fit.traversable.copy()
-        self._open_passed(traversable, state)
+        self.open_passed(traversable, state, self.row0, self.col0)
         return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable,
                          cell_cost=fit.cell_cost.copy(), clearance_m=fit.clearance_m.copy(),
                          standing=fit.standing.copy())
 
-    def _open_passed(self, traversable: np.ndarray, state: np.ndarray) -> None:
-        """Cells the body has been through (mark_passed) are traversable while they read free."""
+    def whole_state(self) -> tuple[np.ndarray, int, int]:
+        """The state (UNKNOWN / FREE / OCCUPIED, bumps as walls) of everything mapped: the
+        window over every paged-out tile, on their bounding box; and the box's global
+        (row0, col0)."""
+        p = self.p
+        t = TilePager.TILE_CELLS
+        keys = list(self.pager.tile_keys())
+        r_lo = min([self.row0] + [ti * t for ti, _ in keys])
+        c_lo = min([self.col0] + [tj * t for _, tj in keys])
+        r_hi = max([self.row0 + self.n] + [(ti + 1) * t for ti, _ in keys])
+        c_hi = max([self.col0 + self.n] + [(tj + 1) * t for _, tj in keys])
+        logodds = np.zeros((r_hi - r_lo, c_hi - c_lo), self.logodds.dtype)
+        self.pager.load(logodds, r_lo, c_lo, (0, r_hi - r_lo, 0, c_hi - c_lo))
+        logodds[self.row0 - r_lo:self.row0 - r_lo + self.n, self.col0 - c_lo:self.col0 - c_lo + self.n] = self.logodds
+        state = kernels.classify(logodds, p.logodds_occupied, p.logodds_free)
+        self._mark_bumps(state, r_lo, c_lo)
+        return state, r_lo, c_lo
+
+    def _mark_bumps(self, state: np.ndarray, row0: int, col0: int) -> None:
+        """Obstacles felt (mark_obstacle_ahead) as walls in a state grid anchored at global
+        cell (row0, col0)."""
+        res = self.p.resolution_m
+        n_r, n_c = state.shape
+        for bx, by in self.bumps:
+            i, j = int(math.floor(by / res)) - row0, int(math.floor(bx / res)) - col0
+            if 0 <= i < n_r and 0 <= j < n_c:
+                state[i, j] = kernels.OCCUPIED
+
+    def open_passed(self, traversable: np.ndarray, state: np.ndarray, row0: int, col0: int) -> None:
+        """Cells the body has been through (mark_passed) are traversable while they read
+        free, in grids anchored at global cell (row0, col0)."""
         if not self.passed:
             return
         if len(self._passed_cells) != len(self.passed):       # the set only grows
             self._passed_cells = np.array(sorted(self.passed), np.int64).reshape(-1, 2)
-        cells = self._passed_cells - (self.row0, self.col0)
-        inside = (cells >= 0).all(axis=1) & (cells < self.n).all(axis=1)
+        cells = self._passed_cells - (row0, col0)
+        inside = (cells >= 0).all(axis=1) & (cells < traversable.shape).all(axis=1)
         i, j = cells[inside, 0], cells[inside, 1]
         free = state[i, j] == kernels.FREE
         traversable[i[free], j[free]] = True

@@ -17,12 +17,12 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.ndimage as ndimage
 
 from firmware import kernels
 from firmware.params import ExplorationParams
 from firmware.schemes.base import PlanningView, Scheme
 from firmware.services.grid_paths import GridPaths, cell_known, escape_start, nearest_traversable
+from firmware.services.known_map import Frontier, KnownMap, find_frontiers
 from firmware.services.local_map import LocalMap
 from firmware.services.targets import Candidate, Target, TargetKeeper
 from firmware.services.topo_map import TopoMap
@@ -52,7 +52,11 @@ class Planner:
         # Edges of the topological map that this robot's own map shows crossing a wall.
         self.blocked_edges: set[tuple[tuple[int, int], tuple[int, int]]] = set()
         # What was left when the robot had nothing more to explore (the last plan's).
-        self.frontiers = FrontierCount(0, 0.0)
+        self.frontiers = FrontiersLeft()
+        # Everything mapped, for routes the window and the graph cannot give and for what is
+        # left anywhere before the robot stops; frontiers (global cells) it sent the robot to.
+        self.known = KnownMap(params, local_map)
+        self._far_tried: dict[tuple[int, int], bool] = {}     # True: the scheme left it to a teammate
         # Until then plans are tight (no lethal tolerance, faces at their cells' centres) and slow: the
         # retry after a recovery (the agent sets it when one ends).
         self.tight_until_us = -1
@@ -111,6 +115,8 @@ class Planner:
             settle_choice_costs(candidates, paths, self.targets.target, self.p.resolution_m)
             c = self.targets.choose(candidates)
             cells = self._route(c, paths, topo_src, topo_dist, topo_parent, x_m, y_m)
+            if cells is None:
+                cells = self._route_through_known(c, paths, x_m, y_m, now_us)
             if cells is not None:
                 ended = self.targets.head_for(c, now_us)
                 self._tell(ended, "stalled")
@@ -136,15 +142,48 @@ class Planner:
             self.scheme.filter_waypoints(dataclasses.replace(view, closing=True))
             if last_look in self.waypoints.items:
                 return Plan(None, np.zeros((0, 2)), False)  # the next cycle heads there
-        self.frontiers = count_frontiers(layers.sight, reachable, p, self.map.row0, self.map.col0)
-        if not tight and self._untried(self.frontiers.cells):
+        near = [f.cell for f in find_frontiers(layers.sight, reachable, p, self.map.row0, self.map.col0).unreachable]
+        if not tight and self._untried(near):
             # Frontiers the body cannot reach on the map's expected walls: recover and look
             # for a way on tight paths before saying so.
-            self._tried_tight |= set(self.frontiers.cells)
+            self._tried_tight |= set(near)
             return Plan(None, np.zeros((0, 2)), False, recover=True)
+        if self._head_for_far_frontier(view, x_m, y_m, now_us):
+            return Plan(None, np.zeros((0, 2)), False)  # the next cycle heads there
         return Plan(None, np.zeros((0, 2)), True)
 
-    def _untried(self, cells: tuple[tuple[int, int], ...]) -> bool:
+    def _head_for_far_frontier(self, view: PlanningView, x_m: float, y_m: float, now_us: int) -> bool:
+        """A robot about to stop: a frontier its body can reach anywhere in what it has
+        mapped, not tried yet and not where it failed to get to before, becomes a waypoint
+        (bans near it lifted), the nearest first. Each frontier gets one try; what is left
+        after that is recorded in self.frontiers. True if the robot heads for one."""
+        self.known.refresh(x_m, y_m, now_us, force=True)
+        found = self.known.frontiers()
+        fresh = [f for f in found.reachable if not self._near_tried(f) and not self.waypoints.failed_near(*f.stand_xy)]
+        if fresh:
+            f = min(fresh, key=lambda f: (math.hypot(f.stand_xy[0] - x_m, f.stand_xy[1] - y_m), f.cell))
+            w = self.waypoints.take_up(f.stand_xy[0], f.stand_xy[1], f.hidden_bit)
+            # The scheme may leave it to a teammate that reported having seen it.
+            self.scheme.filter_waypoints(dataclasses.replace(view, closing=True))
+            self._far_tried[f.cell] = w not in self.waypoints.items
+            if not self._far_tried[f.cell]:
+                return True
+        given_up = tuple(f for f in found.reachable if not self._left_to_team(f))
+        self.frontiers = FrontiersLeft(given_up, found.unreachable)
+        return False
+
+    def _near_tried(self, f: Frontier) -> bool:
+        """Did an earlier try go to this frontier? (Its middle shifts a little as the map
+        fills in.)"""
+        r2 = (self.p.ban_radius_m / self.p.resolution_m) ** 2
+        return any((f.cell[0] - i) ** 2 + (f.cell[1] - j) ** 2 <= r2 for i, j in self._far_tried)
+
+    def _left_to_team(self, f: Frontier) -> bool:
+        r2 = (self.p.ban_radius_m / self.p.resolution_m) ** 2
+        return any(team and (f.cell[0] - i) ** 2 + (f.cell[1] - j) ** 2 <= r2
+                   for (i, j), team in self._far_tried.items())
+
+    def _untried(self, cells: list[tuple[int, int]]) -> bool:
         """Is any of these frontier cells (global) farther than ban_radius_m from every one a
         tight retry was for? (A frontier's middle shifts a little as the map fills in.)"""
         if not self._tried_tight:
@@ -210,64 +249,41 @@ class Planner:
         return paths.path(best[1][0], best[1][1])
 
 
+    def _route_through_known(self, c: Candidate, paths: GridPaths, x_m: float, y_m: float,
+                             now_us: int) -> list[tuple[int, int]] | None:
+        """When neither the window nor the graph has a way to c: the cells of a local path
+        along the shortest way through everything mapped (services.known_map), as far as
+        that way stays in the window on cells a grid path reaches; None if there is no such
+        way, or it makes no progress."""
+        self.known.refresh(x_m, y_m, now_us)
+        found = self.known.route(c.x_m, c.y_m)
+        if found is None:
+            return None
+        xy, c.cost_m = found
+        ij, inside = self.map.cells_of(xy)
+        ok = inside.copy()
+        ok[inside] = paths.reachable[ij[inside, 0], ij[inside, 1]]
+        stretch = len(ok) if ok.all() else int(np.argmin(ok))
+        if stretch == 0:
+            return None
+        end = ij[stretch - 1]
+        if math.hypot(xy[stretch - 1, 0] - x_m, xy[stretch - 1, 1] - y_m) < self.p.waypoint_reached_m:
+            return None
+        return paths.path(int(end[0]), int(end[1]))
+
+
 @dataclass(frozen=True)
-class FrontierCount:
-    """Frontiers (free cells bordering unknown ones, 8-connected groups of at least
-    MIN_FRONTIER_CELLS) that no grid path reaches and that hide at least
-    report_unreachable_bit of unknown, and the area of their cells."""
-    unreachable: int
-    unreachable_area_m2: float
-    cells: tuple[tuple[int, int], ...] = ()     # each frontier's middle cell, global (row, col)
+class FrontiersLeft:
+    """What a robot that stopped left behind, in all it had mapped: frontiers its body could
+    get to but that it failed to (given_up: tried, and still there), and frontiers behind
+    gaps narrower than its body as mapped (behind_gaps). Each hides at least
+    report_unreachable_bit."""
+    given_up: tuple[Frontier, ...] = ()
+    behind_gaps: tuple[Frontier, ...] = ()
 
-
-# A group of fewer frontier cells is narrower than the body (0.5 m at 0.1 m cells): a speck
-# of noise at a wall's foot, or a crack, not a way on.
-MIN_FRONTIER_CELLS = 5
-# How far from where a robot's centre can go it still stands at a frontier: its radius (0.25 m)
-# and a cell, at 0.1 m cells.
-REACH_CELLS = 4
-
-
-def count_frontiers(sight: np.ndarray, reachable: np.ndarray, params: ExplorationParams,
-                    row0: int = 0, col0: int = 0) -> FrontierCount:
-    """The frontiers left in the local map that the body cannot get to and that hide
-    something: at least report_unreachable_bit of unknown in view from the frontier's
-    middle, so a pocket too small to matter is not reported, a room behind a door too
-    narrow for the body is. They are read from the sight layer (MapLayers.sight),
-    where unknown cells touching a wall count as wall: the unknown sliver at a wall's foot
-    that no beam grazed is no way on. A frontier counts as reached when one of its cells
-    lies within REACH_CELLS of a cell a grid path reaches (the body's edge, where it can look
-    into the unknown). (row0, col0): the window's global cell, to name the frontiers' cells."""
-    free = sight == kernels.FREE
-    unknown = sight == kernels.UNKNOWN
-    next_to_unknown = ndimage.binary_dilation(unknown, structure=np.ones((3, 3), bool))
-    frontier = free & next_to_unknown
-    labels, n = ndimage.label(frontier, structure=np.ones((3, 3), bool))
-    if n == 0:
-        return FrontierCount(0, 0.0)
-    yy, xx = np.mgrid[-REACH_CELLS:REACH_CELLS + 1, -REACH_CELLS:REACH_CELLS + 1]
-    near_reach = ndimage.binary_dilation(reachable, structure=yy * yy + xx * xx <= REACH_CELLS * REACH_CELLS)
-    sizes = np.bincount(labels.ravel(), minlength=n + 1)
-    reached = np.bincount(labels.ravel(), weights=near_reach.ravel(), minlength=n + 1) > 0
-    left = np.nonzero((sizes >= MIN_FRONTIER_CELLS) & ~reached)[0]
-    left = left[left > 0]
-    if not len(left):
-        return FrontierCount(0, 0.0)
-    middles = np.array([_middle_cell(labels, k) for k in left], np.int64).reshape(-1, 2)
-    unseen_cells = kernels.observable_unknown(sight, middles[:, 0], middles[:, 1], params.info_rays,
-                                              params.d_cam_m / params.resolution_m)
-    hiding = left[unseen_cells * params.entropy_per_cell_bit >= params.report_unreachable_bit]
-    middle_of = dict(zip(left.tolist(), map(tuple, middles.tolist())))
-    return FrontierCount(int(len(hiding)), float(sizes[hiding].sum()) * params.resolution_m ** 2,
-                         tuple((row0 + middle_of[k][0], col0 + middle_of[k][1]) for k in hiding.tolist()))
-
-
-def _middle_cell(labels: np.ndarray, k: int) -> tuple[int, int]:
-    """The cell of group k nearest the group's centroid (lowest index on ties)."""
-    cells = np.argwhere(labels == k)
-    d2 = ((cells - cells.mean(axis=0)) ** 2).sum(axis=1)
-    i, j = cells[int(np.argmin(d2))]
-    return int(i), int(j)
+    @staticmethod
+    def area_m2(frontiers: tuple[Frontier, ...]) -> float:
+        return float(sum(f.area_m2 for f in frontiers))
 
 
 def settle_choice_costs(candidates: list[Candidate], paths: GridPaths, target: Target | None,

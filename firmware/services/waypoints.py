@@ -168,10 +168,21 @@ class WaypointSet:
         order = np.lexsort((cand[:, 1], cand[:, 0], -e_bit))
         k = int(order[ok[order]][0])
         self._looked_again.add(keys[k])
-        w = Waypoint(float(xs[k]), float(ys[k]), float(e_bit[k]))
-        self.banned = [b for b in self.banned if (b[0] - w.x_m) ** 2 + (b[1] - w.y_m) ** 2 >= p.ban_radius_m ** 2]
+        return self.take_up(float(xs[k]), float(ys[k]), float(e_bit[k]))
+
+    def take_up(self, x_m: float, y_m: float, e_bit: float) -> Waypoint:
+        """Make a waypoint here despite any ban near it (the bans within ban_radius_m are
+        lifted); returned, and added to W."""
+        r2 = self.p.ban_radius_m ** 2
+        w = Waypoint(x_m, y_m, e_bit)
+        self.banned = [b for b in self.banned if (b[0] - x_m) ** 2 + (b[1] - y_m) ** 2 >= r2]
         self.items.append(w)
         return w
+
+    def failed_near(self, x_m: float, y_m: float) -> bool:
+        """Is a place the robot had a route to but got no closer to within ban_radius_m?"""
+        r2 = self.p.ban_radius_m ** 2
+        return any((fx - x_m) ** 2 + (fy - y_m) ** 2 < r2 for fx, fy in self._failed)
 
     def _scored_candidates(self, local_map, state: np.ndarray, reachable: np.ndarray,
                            spacing_cells: int | None = None) -> tuple[np.ndarray, np.ndarray]:

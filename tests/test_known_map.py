@@ -1,0 +1,109 @@
+"""Everything a robot has mapped (services.known_map): the window over the paged-out tiles,
+frontiers found in all of it, and a robot about to stop going back to a frontier its window
+has left behind, along a way only the whole map shows."""
+from __future__ import annotations
+
+import numpy as np
+
+from firmware import kernels
+from firmware.params import ExplorationParams
+from firmware.services.known_map import KnownMap, find_frontiers
+from firmware.services.local_map import LocalMap
+from host_tools.mission import MissionConfig, run_mission
+from tests.doubles import PlannerRig
+
+P = ExplorationParams()
+FREE_LOGODDS, WALL_LOGODDS = -5.0, 5.0
+
+
+def _paint(local_map: LocalMap, x0_m: float, x1_m: float, y0_m: float, y1_m: float, value: float) -> None:
+    """Set the log-odds of the window cells whose centres lie in the box."""
+    ij, inside = local_map.cells_of(np.array([[x0_m, y0_m], [x1_m, y1_m]]))
+    (i0, j0), (i1, j1) = np.clip(ij, 0, local_map.n - 1)
+    local_map.logodds[i0:i1 + 1, j0:j1 + 1] = value
+
+
+def _corridor(local_map: LocalMap, x0_m: float, x1_m: float) -> None:
+    """A corridor 2 m wide along y = 0 between x0_m and x1_m, walls 0.2 m thick."""
+    _paint(local_map, x0_m, x1_m, -1.3, 1.3, WALL_LOGODDS)
+    _paint(local_map, x0_m, x1_m, -1.0, 1.0, FREE_LOGODDS)
+
+
+def corridor_with_a_door_left_behind() -> LocalMap:
+    """A robot that mapped a corridor from x = 0 to 70 m, with a doorway 1 m wide in its
+    north wall at x = 60 m opening onto unknown ground, and came back to x = 5 m: the doorway
+    is paged out, 40 m behind the window's edge."""
+    local_map = LocalMap(P, 50.0, 0.0)
+    _corridor(local_map, 30.0, 70.0)
+    _paint(local_map, 70.0, 70.2, -1.3, 1.3, WALL_LOGODDS)          # the far end
+    _paint(local_map, 59.5, 60.5, 1.0, 1.3, FREE_LOGODDS)           # the doorway, unknown beyond
+    assert local_map.follow(10.0, 0.0)
+    _corridor(local_map, 0.0, 30.0)
+    _paint(local_map, -0.2, 0.0, -1.3, 1.3, WALL_LOGODDS)           # the near end
+    return local_map
+
+
+def test_the_whole_map_holds_the_window_over_the_paged_out_tiles():
+    local_map = corridor_with_a_door_left_behind()
+    known = KnownMap(P, local_map)
+    known.refresh(5.0, 0.0, 0)
+    route, cost_m = known.route(60.0, 0.5)
+    assert 55.0 < cost_m < 70.0
+    assert route[0, 0] < 5.5 and route[-1, 0] > 59.0
+    assert (np.abs(route[:, 1]) < 1.0).all()        # along the corridor, inside its walls
+    left = known.frontiers()
+    assert len(left.reachable) == 1 and not left.unreachable
+    door = left.reachable[0]
+    assert abs(door.stand_xy[0] - 60.0) < 1.0 and 0.0 < door.stand_xy[1] < 1.5     # in or before the doorway
+    assert door.hidden_bit >= P.report_unreachable_bit
+
+
+def test_a_frontier_behind_a_gap_narrower_than_the_body_is_found_but_not_reached():
+    local_map = LocalMap(P, 0.0, 0.0)
+    _corridor(local_map, -5.0, 5.0)
+    _paint(local_map, -5.2, -5.0, -1.3, 1.3, WALL_LOGODDS)
+    _paint(local_map, 5.0, 5.2, -1.3, 1.3, WALL_LOGODDS)
+    # A slot 0.5 m wide (the body's width) and 1.2 m deep through a thick wall: the robot can
+    # neither pass it nor look through it from the corridor.
+    _paint(local_map, -1.0, 1.0, 1.0, 2.3, WALL_LOGODDS)
+    _paint(local_map, 0.0, 0.4, 1.0, 2.3, FREE_LOGODDS)
+    known = KnownMap(P, local_map)
+    known.refresh(0.0, 0.0, 0)
+    left = known.frontiers()
+    assert not left.reachable and len(left.unreachable) == 1
+    assert left.unreachable[0].stand_xy is None
+
+
+def test_the_window_alone_finds_no_frontier_once_the_door_is_paged_out():
+    local_map = corridor_with_a_door_left_behind()
+    layers = local_map.layers()
+    i, j = local_map.cell_of(5.0, 0.0)
+    reachable = kernels.reachable_cells(layers.traversable, i, j)
+    found = find_frontiers(layers.sight, reachable, P, local_map.row0, local_map.col0)
+    assert not found.reachable and not found.unreachable
+
+
+def test_a_robot_about_to_stop_goes_back_to_a_frontier_its_window_left_behind():
+    rig = PlannerRig(corridor_with_a_door_left_behind(), "independent")
+    first = rig.plan(5.0, 0.0, 1_000_000)
+    assert not first.done                        # the doorway at x = 60 m is still to be seen
+    second = rig.plan(5.0, 0.0, 2_000_000)
+    assert second.target is not None and abs(second.target.x_m - 60.0) < 1.0
+    # No vertex of the topological map leads there: the whole map gives the way, as far as
+    # the window reaches.
+    assert len(second.path_xy) > 0 and second.path_xy[-1, 0] > 25.0
+    assert (np.abs(second.path_xy[:, 1]) < 1.0).all()
+
+
+def test_a_robot_says_complete_only_when_nothing_it_mapped_is_left_that_its_body_can_reach():
+    r = run_mission(MissionConfig(map_spec="cave:2:30x30", robots=2, seed=1, max_sim_s=1200.0))
+    assert r.termination in ("complete", "complete_with_unreachable_frontiers")
+    report = r.to_json()
+    for k, agent in enumerate(r.agents):
+        known = KnownMap(agent.p, agent.local_map)
+        x_m, y_m = r.trajectories[k][-1, :2]
+        known.refresh(float(x_m), float(y_m), 0)
+        left = known.frontiers()
+        if report["robot_status"][k] == "complete":
+            assert not left.reachable, (k, left.reachable)
+        assert report["narrow_gap_frontiers"][k] == len(left.unreachable)
