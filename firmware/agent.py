@@ -30,6 +30,7 @@ from firmware.services.planner import FrontiersLeft, Planner
 from firmware.services.pose import SHARED_FRAME, PoseService
 from firmware.services.recovery import Recovery, clear_behind
 from firmware.services.roster import Roster
+from firmware.services.scan_match import ScanMatcher
 from firmware.services.targets import TargetKeeper
 from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
@@ -104,6 +105,7 @@ class ExplorerAgent:
                 f"robot radius {limits.robot_radius_m} m exceeds the planner's robot_radius_m "
                 f"{self.p.robot_radius_m} m: paths would scrape walls")
         self.local_map = LocalMap(self.p, pose.x_m, pose.y_m)
+        self.localiser = ScanMatcher(self.p)
         self.topo = TopoMap(self.p.d_build_m, self.p.d_connect_m)
         self.waypoints = WaypointSet(self.p)
         self.roster = Roster(self.hal.robot_id, self.rates.roster_max_age_us)
@@ -138,7 +140,8 @@ class ExplorerAgent:
                 "targets_unreachable": c["unreachable"], "targets_stalled": c["stalled"],
                 "unreachable_frontiers": len(self.planner.frontiers.given_up),
                 "narrow_gap_frontiers": len(self.planner.frontiers.behind_gaps),
-                **self.recovery.counts, **self.scheme.stats(), "bumps": self.bumps}
+                **self.recovery.counts, **self.scheme.stats(), "bumps": self.bumps,
+                "scan_matches": self.localiser.matches, "scan_corrections": self.localiser.corrections}
 
     def frontiers_left(self) -> FrontiersLeft:
         """What this robot left behind when it stopped (empty while it explores)."""
@@ -182,6 +185,12 @@ class ExplorerAgent:
         # The pose when the scan was taken, not now: a LiDAR's scans arrive on its own clock.
         x_m, y_m, yaw_rad = self.pose.pose_at(scan.stamp_us)
         self.local_map.follow(pose.x_m, pose.y_m)
+        if self.localiser.due(x_m, y_m, yaw_rad):
+            found = self.localiser.match(self.local_map, x_m, y_m, yaw_rad, scan.angle_min_rad,
+                                         scan.angle_increment_rad, scan.ranges_m, scan.range_max_m)
+            if found is not None:
+                self.pose.correct_at(scan.stamp_us, *found)
+                x_m, y_m, yaw_rad = found
         self.local_map.integrate_scan(x_m, y_m, yaw_rad, scan.angle_min_rad,
                                       scan.angle_increment_rad, scan.ranges_m, scan.range_max_m)
         self._last_scan = (x_m, y_m, yaw_rad, scan)

@@ -747,3 +747,38 @@ def mark_visible(state, src_i, src_j, n_rays, max_range_cells, wanted, out):
                     j = x % pc - 1
                     left_in_block[i >> sh, j >> sh] -= 1
                     out[i, j] = True
+
+
+@njit(cache=True)
+def scan_match_scores(field, row0, col0, res, x_m, y_m, yaw_rad, beam_x_m, beam_y_m, dxs_m, dys_m, dyaws_rad):
+    """How well a scan fits a map at poses around (x_m, y_m, yaw_rad): for each pose
+    (x_m + dxs_m[a], y_m + dys_m[b], yaw_rad + dyaws_rad[k]), the mean of field (a grid
+    anchored at global cell (row0, col0), read bilinearly between cell centres, 0 outside
+    it) at the scan's endpoints, given in the robot frame (beam_x_m, beam_y_m).
+    Returns scores[k, a, b]."""
+    n_r, n_c = field.shape
+    n = len(beam_x_m)
+    out = np.zeros((len(dyaws_rad), len(dxs_m), len(dys_m)))
+    if n == 0:
+        return out
+    for k in range(len(dyaws_rad)):
+        c = math.cos(yaw_rad + dyaws_rad[k])
+        s = math.sin(yaw_rad + dyaws_rad[k])
+        for m in range(n):
+            wx = c * beam_x_m[m] - s * beam_y_m[m] + x_m
+            wy = s * beam_x_m[m] + c * beam_y_m[m] + y_m
+            for a in range(len(dxs_m)):
+                fx = (wx + dxs_m[a]) / res - col0 - 0.5
+                j0 = int(math.floor(fx))
+                tx = fx - j0
+                if j0 < 0 or j0 + 1 >= n_c:
+                    continue
+                for b in range(len(dys_m)):
+                    fy = (wy + dys_m[b]) / res - row0 - 0.5
+                    i0 = int(math.floor(fy))
+                    ty = fy - i0
+                    if i0 < 0 or i0 + 1 >= n_r:
+                        continue
+                    out[k, a, b] += (1.0 - ty) * ((1.0 - tx) * field[i0, j0] + tx * field[i0, j0 + 1]) \
+                        + ty * ((1.0 - tx) * field[i0 + 1, j0] + tx * field[i0 + 1, j0 + 1])
+    return out / n

@@ -15,8 +15,9 @@ import numpy as np
 from firmware import kernels
 from firmware.params import ExplorationParams
 from firmware.services.grid_paths import GridPaths
-from firmware.services.local_map import LocalMap
 from firmware.services.known_map import KnownMap, find_frontiers
+from firmware.services.local_map import LocalMap
+from firmware.services.scan_match import ScanMatcher
 from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
 
@@ -46,6 +47,8 @@ def warm_up(params: ExplorationParams) -> None:
     known.refresh(0.0, 0.0, 0)
     known.route(1.0, 0.0)
     known.frontiers()
+    # A scan matched to the map (when scan_match is on).
+    ScanMatcher(small).match(local_map, 0.0, 0.0, 0.0, -np.pi, 2 * np.pi / _BEAMS, ranges_m, 10.0)
     # A teammate's view, as Bayer & Faigl's presence rule casts it.
     ij, inside = local_map.cells_of(np.array([[1.0, 0.0]]))
     kernels.mark_visible(layers.sight, ij[inside, 0], ij[inside, 1], small.team_view_rays,

@@ -163,3 +163,25 @@ def best_standing_points(occupied, cells_i, cells_j, half_side_cells, reach_cell
         best_d.append(scores[k])
         best_k.append(k)
     return np.array(best_d, np.float32), np.array(best_k, np.int8)
+
+
+def scan_match_scores(field, row0, col0, res, x, y, yaw, beam_x, beam_y, dxs, dys, dyaws):
+    """For each pose offset, the mean over the endpoints of the field interpolated
+    bilinearly between cell centres; an endpoint whose four cells are not all inside reads 0."""
+    n_r, n_c = field.shape
+    out = np.zeros((len(dyaws), len(dxs), len(dys)))
+    for k, dyaw in enumerate(dyaws):
+        c, s = math.cos(yaw + dyaw), math.sin(yaw + dyaw)
+        for a, dx in enumerate(dxs):
+            for b, dy in enumerate(dys):
+                total = 0.0
+                for bxm, bym in zip(beam_x, beam_y):
+                    fx = (c * bxm - s * bym + x + dx) / res - col0 - 0.5
+                    fy = (s * bxm + c * bym + y + dy) / res - row0 - 0.5
+                    j0, i0 = math.floor(fx), math.floor(fy)
+                    if 0 <= i0 < n_r - 1 and 0 <= j0 < n_c - 1:
+                        tx, ty = fx - j0, fy - i0
+                        total += ((1 - ty) * (1 - tx) * field[i0, j0] + (1 - ty) * tx * field[i0, j0 + 1]
+                                  + ty * (1 - tx) * field[i0 + 1, j0] + ty * tx * field[i0 + 1, j0 + 1])
+                out[k, a, b] = total / len(beam_x) if len(beam_x) else 0.0
+    return out

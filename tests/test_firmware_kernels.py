@@ -420,3 +420,26 @@ def test_warm_up_compiles_every_kernel_a_mission_calls():
     out = subprocess.run([sys.executable, "-c", WARM_UP_CHECK], capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "{}", f"compiled only after warm_up: {out.stdout}"
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1))
+def test_scan_match_scores_matches_reference(seed):
+    rng = np.random.default_rng(seed)
+    rows, cols = (int(v) for v in rng.integers(2, 25, 2))
+    field = rng.random((rows, cols))
+    row0, col0 = (int(v) for v in rng.integers(-50, 50, 2))
+    res = float(rng.choice([0.05, 0.1, 0.2]))
+    x = (col0 + rng.uniform(0, cols)) * res
+    y = (row0 + rng.uniform(0, rows)) * res
+    yaw = float(rng.uniform(-math.pi, math.pi))
+    n = int(rng.integers(0, 30))
+    r = rng.uniform(0.0, 0.6 * max(rows, cols) * res, n)
+    a = rng.uniform(-math.pi, math.pi, n)
+    bx, by = r * np.cos(a), r * np.sin(a)
+    dxs = rng.uniform(-0.2, 0.2, int(rng.integers(1, 4)))
+    dys = rng.uniform(-0.2, 0.2, int(rng.integers(1, 4)))
+    dyaws = rng.uniform(-0.05, 0.05, int(rng.integers(1, 4)))
+    got = kernels.scan_match_scores(field, row0, col0, res, x, y, yaw, bx, by, dxs, dys, dyaws)
+    expected = ref.scan_match_scores(field, row0, col0, res, x, y, yaw, bx, by, dxs, dys, dyaws)
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12)

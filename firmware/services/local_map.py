@@ -294,6 +294,12 @@ class LocalMap:
         return True
 
     # --- derived layers -------------------------------------------------------------
+    def state_of(self, i0: int, i1: int, j0: int, j1: int) -> np.ndarray:
+        """UNKNOWN / FREE / OCCUPIED of the window cells [i0, i1) x [j0, j1), from what the
+        LiDAR saw alone (no bumps)."""
+        p = self.p
+        return kernels.classify(np.ascontiguousarray(self.logodds[i0:i1, j0:j1]), p.logodds_occupied, p.logodds_free)
+
     def layers(self, tight: bool = False) -> MapLayers:
         """tight: a retry after a recovery, with no lethal tolerance and the wall faces at
         their cells' centres (the most room there can be)."""
