@@ -143,6 +143,11 @@ class ExplorerAgent:
                 **self.recovery.counts, **self.scheme.stats(), "bumps": self.bumps,
                 "scan_matches": self.localiser.matches, "scan_corrections": self.localiser.corrections}
 
+    def pose_estimate(self) -> tuple[float, float, float] | None:
+        """Where this robot believes it is (x_m, y_m, yaw_rad), as of its last pose reading."""
+        pose = getattr(self, "pose", None)
+        return None if pose is None else pose.latest()
+
     def frontiers_left(self) -> FrontiersLeft:
         """What this robot left behind when it stopped (empty while it explores)."""
         return self.planner.frontiers

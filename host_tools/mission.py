@@ -82,6 +82,10 @@ class MissionResult:
     radio: dict
     air_log_sha256: str
     coverage_raw: float = math.nan   # against the raw 4-connected component, slivers included
+    # Per robot: how far its own pose estimate was from the truth when last sampled, and at
+    # worst (sampled once per simulated second).
+    pose_error_m: list[float] = field(default_factory=list)
+    pose_error_max_m: list[float] = field(default_factory=list)
     start_poses: list[Pose] = field(default_factory=list)      # (x_m, y_m, yaw_rad) per robot
     # For plots (not in the JSON).
     trajectories: list[np.ndarray] = field(repr=False, default_factory=list)
@@ -128,6 +132,8 @@ class MissionResult:
                                             for a in self.agents],
             "reachable_area_m2": round(self.reachable_area_m2, 2),
             "robots_in_wall": self.robots_in_wall,
+            "pose_error_m": [round(e, 3) for e in self.pose_error_m],
+            "pose_error_max_m": [round(e, 3) for e in self.pose_error_max_m],
             "blocked_moves": self.blocked_moves,
             "ticks": self.ticks,
             "trajectory_sha256": self.trajectory_sha256,
@@ -269,6 +275,22 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 capture.abort()
 
 
+def _pose_errors(world: World, agents: list[ExplorerAgent], own_origins: list[Pose] | None) -> list[float]:
+    """Per robot: the distance (m) from where it believes it is to where it is (0 before its
+    first pose reading), in the frame its odometry reports in: with frames "own" the truth
+    is taken into the robot's own frame (origin and heading at its start, own_origins)."""
+    out = []
+    for i, agent in enumerate(agents):
+        est = agent.pose_estimate()
+        x, y, _ = world.true_pose(i)
+        if own_origins is not None:
+            ox, oy, oyaw = own_origins[i]
+            c, s = math.cos(oyaw), math.sin(oyaw)
+            x, y = c * (x - ox) + s * (y - oy), -s * (x - ox) + c * (y - oy)
+        out.append(0.0 if est is None else math.hypot(est[0] - x, est[1] - y))
+    return out
+
+
 def _termination(agents: list[ExplorerAgent], interrupted: bool) -> str:
     """"complete" when every robot stopped with no frontier left that its body could reach
     in all it had mapped; "complete_with_unreachable_frontiers" when every robot stopped but
@@ -321,6 +343,9 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
     coverage = 0.0
     next_sample_us = 0
     ticks = 0
+    pose_error = pose_error_max = [0.0] * cfg.robots
+    sample_pose_errors = False
+    own_origins = [world.true_pose(i) for i in range(cfg.robots)] if cfg.frames == "own" else None
     interrupted = False
     wall0 = time.perf_counter()
     while True:
@@ -334,6 +359,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
             if observer is not None:
                 observer(now, agents)
             next_sample_us += COVERAGE_SAMPLE_US
+            sample_pose_errors = True
         if all(a.done for a in agents) or now >= max_us:
             break
         if should_stop is not None and should_stop():
@@ -346,6 +372,11 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
                 profiler.leave("tick")
             else:
                 agent.tick()
+        if sample_pose_errors:
+            # After the robots read their odometry this tick and before the world moves on.
+            pose_error = _pose_errors(world, agents, own_origins)
+            pose_error_max = [max(m, e) for m, e in zip(pose_error_max, pose_error)]
+            sample_pose_errors = False
         world.step(tick_us)
         if bank is not None:
             bank.advance_to(world.now_us)   # the bank moves the channel, the drivers read up to it
@@ -369,6 +400,8 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         digest.update(t.tobytes())
     own_shares = [float((world.observed(i) & reachable).sum()) / reachable_cells for i in range(cfg.robots)]
     return MissionResult(
+        pose_error_m=pose_error,
+        pose_error_max_m=pose_error_max,
         overlap=sum(own_shares) - coverage,
         radio=radio_metrics(air_frames, channel, agents, mesh, world.now_us),
         air_log_sha256=air_log_digest(air_frames),

@@ -105,7 +105,8 @@ def test_keyframe_wire_round_trip(sender, x_m, y_m, bearing0_rad, bins, seed):
     assert len(data) == keyframe_bytes(bins)
     got_sender, got = decode_keyframe(data)
     assert got_sender == sender
-    assert abs(got.x_m - x_m) <= 0.005 and abs(got.y_m - y_m) <= 0.005 and got.range_max_m == 12.0
+    # Positions travel in centimetres: off by at most half of one (and a rounding of the float).
+    assert abs(got.x_m - x_m) <= 0.005 + 1e-12 and abs(got.y_m - y_m) <= 0.005 + 1e-12 and got.range_max_m == 12.0
     turn = 2 * math.pi
     wrapped = abs((got.bearing0_rad - bearing0_rad + math.pi) % turn - math.pi)
     assert wrapped <= turn / 65536

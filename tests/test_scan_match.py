@@ -3,6 +3,7 @@
 constrain it, and left alone along a corridor that does not."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -13,7 +14,9 @@ from firmware.services.local_map import LocalMap
 from firmware.services.pose import PoseService
 from firmware.services.scan_match import ScanMatcher
 from hal.samples import OdometrySample
+from host_tools.mission import MissionConfig, run_mission
 from world_sim.raycast import cast_rays
+from world_sim.world import WorldParams
 
 P = ExplorationParams(scan_match=True)
 BEAMS = 360
@@ -112,3 +115,23 @@ def test_a_correction_carries_on_rigidly_to_the_odometry_that_follows():
     now = pose.read()
     assert (now.x_m, now.y_m, now.yaw_rad) == pytest.approx((2.1 + math.cos(0.52), 0.9 + math.sin(0.52), 0.52))
     assert now.v_mps == 0.5
+
+
+@pytest.mark.parametrize("frames,scheme", [("shared", "greedy"), ("own", "independent")])
+def test_a_mission_reports_how_far_each_robot_believes_itself_from_where_it_is(frames, scheme):
+    exact = dataclasses.replace(WorldParams(), odom_trans_noise_per_m=0.0, odom_yaw_noise_per_rad=0.0,
+                                odom_yaw_drift_per_m=0.0, odom_speed_noise_frac=0.0)
+    cfg = MissionConfig(map_spec="cave:3:30x30", robots=2, seed=4, max_sim_s=120.0, strategy=scheme, frames=frames)
+    r = run_mission(cfg, world_params=exact)
+    assert r.pose_error_max_m == pytest.approx([0.0, 0.0], abs=1e-6)
+    drifting = run_mission(cfg)
+    assert all(e > 0.0 for e in drifting.pose_error_max_m)
+    assert drifting.to_json()["pose_error_m"] == [round(e, 3) for e in drifting.pose_error_m]
+
+
+def test_matching_scans_adds_no_error_where_odometry_has_none():
+    exact = dataclasses.replace(WorldParams(), odom_trans_noise_per_m=0.0, odom_yaw_noise_per_rad=0.0,
+                                odom_yaw_drift_per_m=0.0, odom_speed_noise_frac=0.0)
+    r = run_mission(MissionConfig(map_spec="cave:3:30x30", seed=4, max_sim_s=300.0), params=P, world_params=exact)
+    assert r.explorer_stats()["scan_matches"][0] > 100
+    assert r.pose_error_max_m[0] < 0.05

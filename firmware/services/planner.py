@@ -111,12 +111,21 @@ class Planner:
         self.targets.forget_strikes_except(candidates)
         self._place_in_window(candidates, paths)
 
+        # Candidates routed through the whole map, with their cells: costed by that way, they
+        # take their turn again (the graph may have called them near across a wall).
+        through_known: dict[tuple[float, float], list[tuple[int, int]] | None] = {}
         while candidates:
             settle_choice_costs(candidates, paths, self.targets.target, self.p.resolution_m)
             c = self.targets.choose(candidates)
+            key = (c.x_m, c.y_m)
             cells = self._route(c, paths, topo_src, topo_dist, topo_parent, x_m, y_m)
-            if cells is None:
-                cells = self._route_through_known(c, paths, x_m, y_m, now_us)
+            if cells is None and key in through_known:
+                cells = through_known[key]
+            elif cells is None:
+                graph_cost_m = c.cost_m
+                cells = through_known[key] = self._route_through_known(c, paths, x_m, y_m, now_us)
+                if cells is not None and c.cost_m > graph_cost_m:
+                    continue
             if cells is not None:
                 ended = self.targets.head_for(c, now_us)
                 self._tell(ended, "stalled")
@@ -129,7 +138,6 @@ class Planner:
             target = Target(c.x_m, c.y_m, c.cost_m, c.from_team)
             if self.targets.strike(c, now_us):
                 self._tell(target, "unreachable")
-            key = (c.x_m, c.y_m)
             candidates = [k for k in candidates if (k.x_m, k.y_m) != key and not self.waypoints.is_banned(k.x_m, k.y_m)]
         self.targets.target = None
         if self.targets.recovery_wanted:
@@ -254,21 +262,25 @@ class Planner:
         """When neither the window nor the graph has a way to c: the cells of a local path
         along the shortest way through everything mapped (services.known_map), as far as
         that way stays in the window on cells a grid path reaches; None if there is no such
-        way, or it makes no progress."""
+        way, if it makes no progress, or if it never leaves the window's reach (then only c's
+        own cell is cut off, and it is struck as before)."""
         self.known.refresh(x_m, y_m, now_us)
         found = self.known.route(c.x_m, c.y_m)
         if found is None:
             return None
-        xy, c.cost_m = found
+        xy, cost_m = found
         ij, inside = self.map.cells_of(xy)
         ok = inside.copy()
         ok[inside] = paths.reachable[ij[inside, 0], ij[inside, 1]]
-        stretch = len(ok) if ok.all() else int(np.argmin(ok))
+        if ok.all():
+            return None
+        stretch = int(np.argmin(ok))
         if stretch == 0:
             return None
         end = ij[stretch - 1]
         if math.hypot(xy[stretch - 1, 0] - x_m, xy[stretch - 1, 1] - y_m) < self.p.waypoint_reached_m:
             return None
+        c.cost_m = cost_m
         return paths.path(int(end[0]), int(end[1]))
 
 

@@ -48,6 +48,10 @@ class PoseService:
         x_m, y_m, yaw_rad = self._corrected(s.x_m, s.y_m, s.yaw_rad)
         return dataclasses.replace(s, x_m=x_m, y_m=y_m, yaw_rad=yaw_rad)
 
+    def latest(self) -> tuple[float, float, float] | None:
+        """The newest pose read (corrected), without reading the odometry; None before any."""
+        return self.pose_at(self._stamps[-1]) if self._stamps else None
+
     def pose_at(self, stamp_us: int) -> tuple[float, float, float] | None:
         """(x_m, y_m, yaw_rad) at stamp_us, corrected, interpolated between the samples
         around it (yaw the short way round); the oldest or newest sample outside the
