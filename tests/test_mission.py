@@ -181,6 +181,12 @@ def test_the_summary_names_the_longest_path_and_what_became_of_the_frames():
     assert "receptions     none (no frame was sent)" in format_summary(report)
     report["radio_stats"]["frames_sent"] = [5, 0]            # one robot alone sends to nobody
     assert "receptions     none (no other robot on the air)" in format_summary(report)
+    report.update(termination="complete_with_unreachable_frontiers", unreachable_frontiers=[1, 0],
+                  unreachable_frontier_area_m2=[0.4, 0.0], narrow_gap_frontiers=[2, 1],
+                  narrow_gap_frontier_area_m2=[0.5, 0.25])
+    text = format_summary(report)
+    assert "1 frontier the robots could not reach (0.4 m² of frontier cells)" in text
+    assert "3 frontiers behind gaps narrower than the body (0.8 m²)" in text
 
 
 def two_rooms(folder) -> str:
