@@ -96,7 +96,9 @@ def test_a_robot_about_to_stop_goes_back_to_a_frontier_its_window_left_behind():
 
 
 def test_a_robot_says_complete_only_when_nothing_it_mapped_is_left_that_its_body_can_reach():
-    r = run_mission(MissionConfig(map_spec="cave:2:30x30", robots=2, seed=1, max_sim_s=1200.0))
+    # No communication: no frontier is left to a teammate (a scheme may do that).
+    r = run_mission(MissionConfig(map_spec="cave:2:30x30", robots=2, seed=1, max_sim_s=1200.0,
+                                  strategy="independent"))
     assert r.termination in ("complete", "complete_with_unreachable_frontiers")
     report = r.to_json()
     for k, agent in enumerate(r.agents):
@@ -107,3 +109,27 @@ def test_a_robot_says_complete_only_when_nothing_it_mapped_is_left_that_its_body
         if report["robot_status"][k] == "complete":
             assert not left.reachable, (k, left.reachable)
         assert report["narrow_gap_frontiers"][k] == len(left.unreachable)
+
+
+def test_a_frontier_the_scheme_leaves_to_a_teammate_does_not_stop_the_robot_short_of_the_next():
+    from firmware.schemes.independent import Independent
+
+    class LeavesTheNearDoorToATeammate(Independent):
+        """As if a teammate had reported seeing the doorway at x = 40 m."""
+
+        def filter_waypoints(self, view):
+            if view.closing:
+                wps = self.s.waypoints
+                wps.items = [w for w in wps.items if w.x_m > 50.0]
+
+    local_map = corridor_with_a_door_left_behind()
+    local_map.follow(50.0, 0.0)
+    _paint(local_map, 39.5, 40.5, 1.0, 1.3, FREE_LOGODDS)           # a second doorway, nearer
+    local_map.follow(10.0, 0.0)
+    rig = PlannerRig(local_map, "independent")
+    scheme = LeavesTheNearDoorToATeammate()
+    scheme.attach(rig.scheme.s)
+    rig.planner.scheme = scheme
+    assert not rig.plan(5.0, 0.0, 1_000_000).done
+    heading = rig.plan(5.0, 0.0, 2_000_000)
+    assert heading.target is not None and abs(heading.target.x_m - 60.0) < 1.0

@@ -168,8 +168,7 @@ class Planner:
         self.known.refresh(x_m, y_m, now_us, force=True)
         found = self.known.frontiers()
         fresh = [f for f in found.reachable if not self._near_tried(f) and not self.waypoints.failed_near(*f.stand_xy)]
-        if fresh:
-            f = min(fresh, key=lambda f: (math.hypot(f.stand_xy[0] - x_m, f.stand_xy[1] - y_m), f.cell))
+        for f in sorted(fresh, key=lambda f: (math.hypot(f.stand_xy[0] - x_m, f.stand_xy[1] - y_m), f.cell)):
             w = self.waypoints.take_up(f.stand_xy[0], f.stand_xy[1], f.hidden_bit)
             # The scheme may leave it to a teammate that reported having seen it.
             self.scheme.filter_waypoints(dataclasses.replace(view, closing=True))
