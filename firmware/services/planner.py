@@ -1,6 +1,7 @@
 """One planning cycle, shared by every scheme: map layers, reachability, waypoints, the
 scheme's stage (filter, then rank), target choice, and a path to the target through the
-local map or, beyond it, along the topological graph of visited places.
+local map or, beyond it, along the topological graph of visited places (or, where neither
+has one, through everything mapped).
 
     layers, start cell, grid search        services.grid_paths
     waypoints W re-scored and found        services.waypoints
@@ -9,6 +10,8 @@ local map or, beyond it, along the topological graph of visited places.
     target reached?                        services.targets
     scheme.rank(own candidates)            the scheme (team targets, costs, Greedy / MinPos)
     choose, route, strikes, stall budget   services.targets and the routes below
+    nothing left: a last look, a tight     services.waypoints, services.known_map
+    retry, frontiers anywhere mapped
 """
 from __future__ import annotations
 
