@@ -1,0 +1,175 @@
+"""This robot's polygon map as it tells it: rings of vertices edited by the paper's update
+cases (meier.md 1.3: a new ring for a new contour, an edge split, a vertex that vanished, a
+ring broken in two), and the records that tell a receiver about them (replica.py).
+
+A change marks the vertices whose state it changed; flush() sends each marked vertex's
+current state once, so changes queued together coalesce: tombstones first, then live
+vertices, so that a live neighbour's newer record overrides the join a tombstone claims.
+refresh() re-sends every live vertex and which ids are alive, for receivers that lost some.
+A removed vertex's id is reused only once its tombstone went out and both neighbours it
+names were sent again after it (or are gone): until then the tombstone may be the only
+record of their link, and the id's next record would replace it. (Neighbours are marked by
+the removal, so they go out in the same flush, after the tombstone.)
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from firmware.schemes.meier.replica import (ALIVE_BLOCK_IDS, MAX_VERTEX_ID, STAMP_MOD, AliveRecord,
+                                            PolyRecord, newer)
+
+# Why a vertex's record was sent (PolyRecord.kind; accounting and the inspector only).
+REFRESH, EDGE_SPLIT, VANISHED, BROKEN, EMERGED = 0, 1, 2, 3, 4
+
+
+@dataclass
+class _State:
+    pred: int
+    succ: int
+    x_lat: int
+    y_lat: int
+    edge_type: int
+    alive: bool = True
+
+
+class PolygonMap:
+    def __init__(self, sender_id: int, first_stamp: int = 0) -> None:
+        self.sender_id = sender_id
+        self._stamp = first_stamp % STAMP_MOD
+        self._v: dict[int, _State] = {}
+        self._dirty: dict[int, int] = {}            # vertex id -> kind of the change
+        self._sent: dict[int, int] = {}             # vertex id -> stamp of its last record
+        self._tombstones: dict[int, tuple[int, int, int]] = {}   # id -> (pred, succ, stamp) as sent
+        self._next_id = 1
+
+    # --- what the map holds ---------------------------------------------------------------
+    def rings(self) -> list[list[int]]:
+        """The live rings, each from its smallest id, in order of that id."""
+        seen: set[int] = set()
+        out = []
+        for v in sorted(i for i, s in self._v.items() if s.alive):
+            if v in seen:
+                continue
+            ring = [v]
+            seen.add(v)
+            u = self._v[v].succ
+            while u != v:
+                ring.append(u)
+                seen.add(u)
+                u = self._v[u].succ
+            k = ring.index(min(ring))
+            out.append(ring[k:] + ring[:k])
+        return sorted(out)
+
+    def vertex(self, v: int) -> tuple[int, int, int]:
+        """(x_lat, y_lat, edge_type) of a live vertex."""
+        s = self._v[v]
+        return s.x_lat, s.y_lat, s.edge_type
+
+    def alive(self, v: int) -> bool:
+        return v in self._v and self._v[v].alive
+
+    # --- the update cases -----------------------------------------------------------------
+    def new_ring(self, points: list[tuple[int, int, int]]) -> list[int]:
+        """A new contour (emerged points): a ring of at least two (x_lat, y_lat, edge_type)."""
+        if len(points) < 2:
+            raise ValueError(f"a ring needs at least 2 vertices, got {len(points)}")
+        ids = [self._new_id() for _ in points]
+        for k, (v, (x, y, t)) in enumerate(zip(ids, points)):
+            self._v[v] = _State(ids[k - 1], ids[(k + 1) % len(ids)], x, y, t)
+            self._mark(v, EMERGED)
+        return ids
+
+    def split_edge(self, u: int, x_lat: int, y_lat: int) -> int:
+        """A vertex at (x_lat, y_lat) into the edge u -> succ(u); both halves keep its type."""
+        w = self._v[u].succ
+        v = self._new_id()
+        self._v[v] = _State(u, w, x_lat, y_lat, self._v[u].edge_type)
+        self._v[u].succ = v
+        self._v[w].pred = v
+        for k in (u, v, w):
+            self._mark(k, EDGE_SPLIT)
+        return v
+
+    def remove(self, v: int) -> None:
+        """A vertex no longer on the boundary: its neighbours are joined; a ring left with
+        fewer than two vertices goes whole."""
+        s = self._v[v]
+        if s.succ == s.pred or s.succ == v:
+            for u in ([v, s.succ] if s.succ != v else [v]):
+                self._kill(u, u, u)
+            return
+        self._kill(v, s.pred, s.succ)
+        self._v[s.pred].succ = s.succ
+        self._v[s.succ].pred = s.pred
+        self._mark(s.pred, VANISHED)
+        self._mark(s.succ, VANISHED)
+
+    def break_ring(self, u: int, w: int) -> None:
+        """A boundary broken in two: u -> w and pred(w) -> succ(u) become edges, making the
+        stretches u, w, ... and succ(u), ..., pred(w) rings of their own (each at least two)."""
+        u2, w2 = self._v[u].succ, self._v[w].pred
+        if u2 == w or w2 == u2 or w == u:
+            raise ValueError(f"breaking {u} -> {w} would leave a ring of fewer than 2 vertices")
+        self._v[u].succ, self._v[w].pred = w, u
+        self._v[w2].succ, self._v[u2].pred = u2, w2
+        for k in (u, w, u2, w2):
+            self._mark(k, BROKEN)
+
+    # --- records --------------------------------------------------------------------------
+    def flush(self) -> list[PolyRecord]:
+        """The records of every vertex changed since the last flush: tombstones, then live."""
+        order = sorted(self._dirty, key=lambda v: (self._v[v].alive, v))
+        out = [self._record(v, self._dirty[v]) for v in order]
+        self._dirty.clear()
+        return out
+
+    def refresh(self) -> list[PolyRecord | AliveRecord]:
+        """Every live vertex again, then which ids are alive, block by block (every block
+        that ever held an id)."""
+        out: list[PolyRecord | AliveRecord] = self.flush()
+        out += [self._record(v, REFRESH) for v in sorted(v for v, s in self._v.items() if s.alive)]
+        for block in range((self._next_id - 1) // ALIVE_BLOCK_IDS + 1):
+            bits = 0
+            for v in range(block * ALIVE_BLOCK_IDS, (block + 1) * ALIVE_BLOCK_IDS):
+                if self.alive(v):
+                    bits |= 1 << (v % ALIVE_BLOCK_IDS)
+            out.append(AliveRecord(self.sender_id, self._next_stamp(), block, bits))
+        return out
+
+    # --- inside -----------------------------------------------------------------------------
+    def _next_stamp(self) -> int:
+        s = self._stamp
+        self._stamp = (s + 1) % STAMP_MOD
+        return s
+
+    def _record(self, v: int, kind: int) -> PolyRecord:
+        s = self._v[v]
+        stamp = self._next_stamp()
+        self._sent[v] = stamp
+        if not s.alive:
+            self._tombstones[v] = (s.pred, s.succ, stamp)
+        return PolyRecord(self.sender_id, stamp, v, s.pred, s.succ, s.x_lat, s.y_lat, s.edge_type, s.alive, kind)
+
+    def _mark(self, v: int, kind: int) -> None:
+        self._dirty.setdefault(v, kind)
+
+    def _kill(self, v: int, pred: int, succ: int) -> None:
+        s = self._v[v]
+        s.alive, s.pred, s.succ = False, pred, succ
+        self._mark(v, VANISHED)
+
+    def _new_id(self) -> int:
+        """The smallest id free to reuse (see the module's note), else a new one."""
+        for v in sorted(self._tombstones):
+            if v in self._dirty:
+                continue
+            pred, succ, stamp = self._tombstones[v]
+            if all(not self.alive(n) or (n in self._sent and newer(self._sent[n], stamp))
+                   for n in (pred, succ) if n != v):
+                del self._tombstones[v]
+                return v
+        if self._next_id > MAX_VERTEX_ID:
+            raise RuntimeError(f"more than {MAX_VERTEX_ID} vertices alive or waiting to be reused")
+        self._next_id += 1
+        return self._next_id - 1

@@ -1,0 +1,129 @@
+"""A teammate's polygon map as this robot holds it: a pure function of the records held.
+
+The sender (polygons.PolygonMap) describes its rings one vertex at a time: each `poly`
+record is the state of one vertex at the sender's record counter `stamp` (its neighbours in
+its ring, its lattice position, the type of the edge to its successor, alive or removed),
+and `poly_alive` records say which ids of a block of 64 are alive at a stamp
+(meier.md 5.2-5.3). Records arrive in any order, some twice, some never, and a refresh
+re-sends every live vertex. Kept per vertex id: only its newest record; per block: only the
+newest `poly_alive`. From those alone:
+
+1. a vertex is alive as its newest record says, unless a newer `poly_alive` statement of its
+   block says otherwise;
+2. every kept record claims links: pred -> vertex -> succ if alive, pred -> succ if removed
+   (a removed vertex's neighbours are joined); the successor of u is the head of the newest
+   claim whose tail is u;
+3. the rings are the cycles of that successor function over alive vertices (vertices on a
+   tail into a cycle are left out), each started at its smallest id, in order of that id.
+
+Stamps are 16-bit counters compared as RFC 1982 serial numbers: a is newer than b when
+0 < (a - b) mod 2^16 < 2^15. The sender re-sends every live vertex at least every 2^14
+stamps, so every record held is within 2^15 of the newest and the order is total.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+STAMP_BITS = 16
+STAMP_MOD = 1 << STAMP_BITS
+ALIVE_BLOCK_IDS = 64
+MAX_VERTEX_ID = 4095         # ids 1..4095; 0 names no vertex
+
+
+def newer(a: int, b: int) -> bool:
+    """Is stamp a newer than stamp b (RFC 1982 on STAMP_BITS bits)?"""
+    d = (a - b) % STAMP_MOD
+    return 0 < d < STAMP_MOD // 2
+
+
+@dataclass(frozen=True)
+class PolyRecord:
+    """The state of one vertex of the sender's polygon map at `stamp`."""
+
+    sender_id: int
+    stamp: int
+    vertex_id: int
+    pred_id: int
+    succ_id: int
+    x_lat: int              # lattice position (meier.md: 0.2 m units in the shared frame)
+    y_lat: int
+    edge_type: int          # of the edge vertex -> succ: 0 unknown (frontier), 1 occupied
+    alive: bool
+    kind: int = 0           # why it was sent (refresh, ES, VP, B, EP, merge): accounting only
+
+
+@dataclass(frozen=True)
+class AliveRecord:
+    """Which vertex ids of block `block` (ids 64 block .. 64 block + 63) are alive at `stamp`."""
+
+    sender_id: int
+    stamp: int
+    block: int
+    alive_bits: int
+
+
+@dataclass(frozen=True)
+class Vertex:
+    vertex_id: int
+    x_lat: int
+    y_lat: int
+    edge_type: int
+
+
+class Replica:
+    """One sender's polygon map, rebuilt from the records of it this robot holds."""
+
+    def __init__(self) -> None:
+        self._vertices: dict[int, PolyRecord] = {}
+        self._blocks: dict[int, AliveRecord] = {}
+
+    def add(self, record: PolyRecord | AliveRecord) -> None:
+        """Hold a record (older states of the same vertex or block are dropped)."""
+        if isinstance(record, AliveRecord):
+            held = self._blocks.get(record.block)
+            if held is None or newer(record.stamp, held.stamp):
+                self._blocks[record.block] = record
+            return
+        held = self._vertices.get(record.vertex_id)
+        if held is None or newer(record.stamp, held.stamp):
+            self._vertices[record.vertex_id] = record
+
+    def _alive(self, r: PolyRecord) -> bool:
+        block = self._blocks.get(r.vertex_id // ALIVE_BLOCK_IDS)
+        if block is not None and newer(block.stamp, r.stamp):
+            return bool(block.alive_bits >> (r.vertex_id % ALIVE_BLOCK_IDS) & 1)
+        return r.alive
+
+    def rings(self) -> list[list[Vertex]]:
+        """The sender's rings as this robot knows them (see the module's rules)."""
+        alive = {v: r for v, r in self._vertices.items() if self._alive(r)}
+        succ: dict[int, tuple[int, int]] = {}        # tail -> (head, stamp of the claim)
+
+        def claim(tail: int, head: int, stamp: int) -> None:
+            held = succ.get(tail)
+            if held is None or newer(stamp, held[1]):
+                succ[tail] = (head, stamp)
+
+        for r in self._vertices.values():
+            if r.vertex_id in alive:
+                claim(r.pred_id, r.vertex_id, r.stamp)
+                claim(r.vertex_id, r.succ_id, r.stamp)
+            else:
+                claim(r.pred_id, r.succ_id, r.stamp)
+        rings = []
+        done: set[int] = set()
+        for start in sorted(alive):
+            path: list[int] = []
+            on_path: dict[int, int] = {}
+            v = start
+            while v in alive and v not in done and v not in on_path:
+                on_path[v] = len(path)
+                path.append(v)
+                v = succ.get(v, (0, 0))[0]
+            if v in on_path:                       # closed a new cycle
+                cycle = path[on_path[v]:]
+                k = cycle.index(min(cycle))
+                rings.append(cycle[k:] + cycle[:k])
+            done.update(path)
+        rings.sort(key=lambda ring: ring[0])
+        return [[Vertex(v, alive[v].x_lat, alive[v].y_lat, alive[v].edge_type) for v in ring] for ring in rings]

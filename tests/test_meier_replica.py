@@ -1,0 +1,126 @@
+"""Meier et al.'s polygon records (firmware/schemes/meier): a receiver's copy of a
+teammate's rings is a pure function of the records it holds, whatever their order,
+duplicates and losses, once a refresh has come (meier.md 5.3, tests R1-R6)."""
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from firmware.schemes.meier.polygons import PolygonMap
+from firmware.schemes.meier.replica import Replica
+
+SETTINGS = settings(max_examples=400, deadline=None)
+
+
+def _edit(pm: PolygonMap, rng: np.random.Generator) -> None:
+    """One random change of the kinds the paper names: a new ring, an edge split, a vertex
+    vanishing, a ring broken in two (or two rings joined: the same relink)."""
+    rings = pm.rings()
+    op = rng.integers(0, 4) if rings else 0
+    if op == 0 or len(rings) == 0:
+        n = int(rng.integers(2, 5))
+        pm.new_ring([(int(rng.integers(-500, 500)), int(rng.integers(-500, 500)), int(rng.integers(0, 2)))
+                     for _ in range(n)])
+        return
+    ring = rings[int(rng.integers(0, len(rings)))]
+    if op == 1:
+        pm.split_edge(ring[int(rng.integers(0, len(ring)))], int(rng.integers(-500, 500)), int(rng.integers(-500, 500)))
+    elif op == 2:
+        pm.remove(ring[int(rng.integers(0, len(ring)))])
+    else:
+        every = [v for r in rings for v in r]
+        u, w = (every[int(k)] for k in rng.integers(0, len(every), 2))
+        try:
+            pm.break_ring(u, w)
+        except ValueError:
+            pass                                    # would leave a ring of one vertex
+
+
+def _history(seed: int, first_stamp: int = 0):
+    """A sender edited at random, flushing now and then: (its map, every record sent)."""
+    rng = np.random.default_rng(seed)
+    pm = PolygonMap(sender_id=3, first_stamp=first_stamp)
+    records = []
+    for _ in range(int(rng.integers(1, 60))):
+        _edit(pm, rng)
+        if rng.random() < 0.4:
+            records += pm.flush()
+    records += pm.flush()
+    return pm, records, rng
+
+
+def _sender_rings(pm: PolygonMap):
+    return [[(v, *pm.vertex(v)) for v in ring] for ring in pm.rings()]
+
+
+def _replica_rings(records) -> list:
+    rep = Replica()
+    for r in records:
+        rep.add(r)
+    return [[(v.vertex_id, v.x_lat, v.y_lat, v.edge_type) for v in ring] for ring in rep.rings()]
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.sampled_from([0, 65500]))
+def test_every_record_in_any_order_and_twice_gives_the_senders_rings(seed, first_stamp):
+    pm, records, rng = _history(seed, first_stamp)
+    doubled = records + [records[int(k)] for k in rng.integers(0, len(records), len(records) // 2)] if records else []
+    rng.shuffle(doubled)
+    assert _replica_rings(doubled) == _sender_rings(pm)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.floats(0.2, 0.9), st.sampled_from([0, 65500]))
+def test_any_loss_then_one_refresh_gives_the_senders_rings(seed, loss, first_stamp):
+    pm, records, rng = _history(seed, first_stamp)
+    kept = [r for r in records if rng.random() >= loss]
+    held = kept + pm.refresh() + [records[int(k)] for k in rng.integers(0, len(records), 5)] if records else pm.refresh()
+    rng.shuffle(held)
+    assert _replica_rings(held) == _sender_rings(pm)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.floats(0.0, 0.9))
+def test_the_same_records_in_another_order_give_the_same_rings_and_never_raise(seed, loss):
+    _, records, rng = _history(seed)
+    held = [r for r in records if rng.random() >= loss]
+    other = list(held)
+    rng.shuffle(other)
+    rings = _replica_rings(held)
+    assert rings == _replica_rings(other)
+    for ring in rings:                               # simple cycles over distinct ids
+        assert len({v[0] for v in ring}) == len(ring)
+
+
+def test_a_removed_id_is_reused_only_after_its_tombstone_and_its_neighbours_went_out():
+    pm = PolygonMap(sender_id=1)
+    a, b, c = pm.new_ring([(0, 0, 0), (10, 0, 0), (10, 10, 1)])
+    pm.flush()
+    pm.remove(b)                                     # a -> c now; b's tombstone will say so
+    assert b not in pm.new_ring([(50, 50, 0), (60, 50, 0)])     # not sent yet: not free
+    sent = pm.flush()
+    # The tombstone goes first and both neighbours after it, so the join never rests on
+    # the tombstone alone for a receiver that got every record.
+    order = [r.vertex_id for r in sent]
+    assert order.index(b) < order.index(a) and order.index(b) < order.index(c)
+    assert b in pm.new_ring([(70, 70, 0), (80, 70, 0)])
+
+
+def test_a_ring_whose_tombstones_were_all_lost_is_gone_after_a_refresh():
+    pm = PolygonMap(sender_id=2)
+    keep = pm.new_ring([(0, 0, 0), (10, 0, 1), (10, 10, 0)])
+    gone = pm.new_ring([(50, 50, 0), (60, 50, 1)])
+    first = pm.flush()
+    pm.remove(gone[0])                                # a ring of two goes whole
+    lost = pm.flush()
+    assert {r.vertex_id for r in lost} == set(gone) and not any(r.alive for r in lost)
+    held = first + pm.refresh()                       # every tombstone lost
+    assert [[v.vertex_id for v in ring] for ring in _replica_rings_of(held)] == [keep]
+
+
+def _replica_rings_of(records):
+    rep = Replica()
+    for r in records:
+        rep.add(r)
+    return rep.rings()
