@@ -1,7 +1,10 @@
 """Meier, Stachniss, Burgard (ECMR 2005): polygon maps under a split-rate budget, with
 target broadcast and a utility discount (issue 22; `../shared/schemes/meier.md`).
 
-Being built. So far: the receiver's copy of a teammate's polygon map as a pure function of
-the records it holds (replica.py), and a sender of the same records (polygons.py) that
-tests drive with random edits. The scheme is not in the registry yet.
+Being built. So far: the boundary of the observed area as crack contours (contours.py),
+the receiver's copy of a teammate's polygon map as a pure function of the records it holds
+(replica.py), and a sender of the same records (polygons.py) that tests drive with random
+edits. Still to come: the incremental Douglas-Peucker under a split rate that turns contours
+into those edits, the records' codec in the scheme's dialect, rasterising teammates'
+polygons, the coordination of eq. (1) and Algorithm 1. The scheme is not in the registry.
 """

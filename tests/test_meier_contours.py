@@ -1,0 +1,85 @@
+"""The boundary of the observed area as crack contours (firmware/schemes/meier/contours.py;
+meier.md 7.1, T1 and T3)."""
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from scipy import ndimage
+
+from firmware import kernels
+from firmware.schemes.meier.contours import FRONTIER_EDGE, WALL_EDGE, signed_area, trace_contours
+
+
+def _state(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    rows, cols = (int(v) for v in rng.integers(1, 30, 2))
+    p = rng.dirichlet([1.0, 1.0, 1.0])
+    return rng.choice(np.array([kernels.UNKNOWN, kernels.FREE, kernels.OCCUPIED], np.uint8), size=(rows, cols), p=p)
+
+
+def _cell(state, x, y):
+    r, c = y, x
+    if 0 <= r < state.shape[0] and 0 <= c < state.shape[1]:
+        return state[r, c]
+    return kernels.UNKNOWN
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_every_crack_has_free_on_its_left_and_the_areas_add_up(seed):
+    state = _state(seed)
+    contours = trace_contours(state)
+    total = 0.0
+    cracks = 0
+    for ring in contours:
+        n = len(ring.corners)
+        assert n >= 4
+        for k in range(n):
+            (x0, y0), (x1, y1) = ring.corners[k], ring.corners[(k + 1) % n]
+            dx, dy = x1 - x0, y1 - y0
+            assert abs(dx) + abs(dy) == 1
+            # The cell on the left of the step and the one on its right.
+            lx, ly = (x0 - 1, y0) if dy == 1 else (x0, y0 - 1) if dy == -1 else (x0, y0) if dx == 1 else (x1, y1 - 1)
+            rx, ry = (x0, y0) if dy == 1 else (x0 - 1, y0 - 1) if dy == -1 else (x0, y0 - 1) if dx == 1 else (x1, y1)
+            assert _cell(state, lx, ly) == kernels.FREE
+            assert _cell(state, rx, ry) != kernels.FREE
+            expected = WALL_EDGE if _cell(state, rx, ry) == kernels.OCCUPIED else FRONTIER_EDGE
+            assert ring.edge_types[k] == expected
+        cracks += n
+        total += signed_area(ring.corners)
+    free = state == kernels.FREE
+    assert total == free.sum()
+    # Every crack between a free cell and another is on exactly one contour.
+    padded = np.pad(free, 1)
+    assert cracks == int((padded[1:, :] != padded[:-1, :]).sum() + (padded[:, 1:] != padded[:, :-1]).sum())
+    # One outer ring per 4-connected free region.
+    _, regions = ndimage.label(free)
+    assert sum(signed_area(r.corners) > 0 for r in contours) == regions
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_filling_the_rings_even_odd_gives_back_the_free_cells(seed):
+    state = _state(seed)
+    rows, cols = state.shape
+    yc, xc = np.mgrid[0:rows, 0:cols] + 0.5
+    inside = np.zeros(state.shape, bool)
+    for ring in trace_contours(state):
+        x, y = ring.corners[:, 0].astype(float), ring.corners[:, 1].astype(float)
+        x2, y2 = np.roll(x, -1), np.roll(y, -1)
+        for k in range(len(x)):
+            if y[k] == y2[k]:
+                continue                                  # horizontal cracks cross no centre row
+            crosses = (np.minimum(y[k], y2[k]) < yc) & (yc < np.maximum(y[k], y2[k])) & (xc < x[k])
+            inside ^= crosses
+    assert np.array_equal(inside, state == kernels.FREE)
+
+
+def test_two_free_cells_touching_at_a_corner_are_two_contours():
+    s = np.full((2, 2), kernels.OCCUPIED, np.uint8)
+    s[0, 0] = s[1, 1] = kernels.FREE
+    rings = trace_contours(s)
+    assert len(rings) == 2 and all(len(r.corners) == 4 for r in rings)
+    assert all((r.edge_types == WALL_EDGE).sum() == 2 for r in rings)
