@@ -80,6 +80,13 @@ class PolygonMap:
             self._mark(v, EMERGED)
         return ids
 
+    def add_vertex(self, x_lat: int, y_lat: int, edge_type: int) -> int:
+        """A vertex on its own, for relink() to place in a ring before the next flush."""
+        v = self._new_id()
+        self._v[v] = _State(v, v, x_lat, y_lat, edge_type)
+        self._mark(v, EMERGED)
+        return v
+
     def split_edge(self, u: int, x_lat: int, y_lat: int) -> int:
         """A vertex at (x_lat, y_lat) into the edge u -> succ(u); both halves keep its type."""
         w = self._v[u].succ
@@ -105,6 +112,21 @@ class PolygonMap:
         self._mark(s.pred, VANISHED)
         self._mark(s.succ, VANISHED)
 
+    def vanish(self, v: int) -> None:
+        """Remove one vertex and join its neighbours, whatever is left of its ring: for an
+        update that relinks the rings before the next flush (tracker)."""
+        s = self._v[v]
+        self._kill(v, s.pred, s.succ)
+        if s.pred != v:
+            self._v[s.pred].succ = s.succ
+            self._v[s.succ].pred = s.pred
+            self._mark(s.pred, VANISHED)
+            self._mark(s.succ, VANISHED)
+
+    def live_vertices(self) -> list[int]:
+        """Every live vertex, by id (some may be between rings during an update)."""
+        return sorted(v for v, s in self._v.items() if s.alive)
+
     def break_ring(self, u: int, w: int) -> None:
         """A boundary broken in two: u -> w and pred(w) -> succ(u) become edges, making the
         stretches u, w, ... and succ(u), ..., pred(w) rings of their own (each at least two)."""
@@ -115,6 +137,26 @@ class PolygonMap:
         self._v[w2].succ, self._v[u2].pred = u2, w2
         for k in (u, w, u2, w2):
             self._mark(k, BROKEN)
+
+    def relink(self, rings: list[list[int]]) -> None:
+        """Make these the rings of the live vertices they name (each at least two, in order):
+        boundaries broken, joined or reordered at once. Vertices whose neighbours changed
+        are sent again."""
+        for ring in rings:
+            if len(ring) < 2:
+                raise ValueError(f"a ring needs at least 2 vertices, got {ring}")
+            for k, v in enumerate(ring):
+                s = self._v[v]
+                pred, succ = ring[k - 1], ring[(k + 1) % len(ring)]
+                if (s.pred, s.succ) != (pred, succ):
+                    s.pred, s.succ = pred, succ
+                    self._mark(v, BROKEN)
+
+    def set_edge_type(self, v: int, edge_type: int) -> None:
+        """The edge v -> succ(v) now borders another kind of cell (a frontier became a wall)."""
+        if self._v[v].edge_type != edge_type:
+            self._v[v].edge_type = edge_type
+            self._mark(v, BROKEN)
 
     # --- records --------------------------------------------------------------------------
     def flush(self) -> list[PolyRecord]:

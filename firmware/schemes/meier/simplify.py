@@ -33,18 +33,25 @@ class RingSimplifier:
     """The approximation of one closed contour: `vertices` (indices into its corners, in
     contour order) and the edges still worth a split."""
 
-    def __init__(self, corners: np.ndarray, edge_types: np.ndarray, eps: float) -> None:
+    def __init__(self, corners: np.ndarray, edge_types: np.ndarray, eps: float,
+                 vertices: list[int] | None = None, usable: np.ndarray | None = None) -> None:
+        """vertices: corner indices the ring has already (the mandatory ones are added);
+        usable: which corners may be vertices (default: those the contour passes once)."""
         self.corners = np.asarray(corners, np.int64)
         self.eps = eps
         n = len(self.corners)
-        keys = [tuple(c) for c in self.corners.tolist()]
-        counts: dict[tuple[int, int], int] = {}
-        for k in keys:
-            counts[k] = counts.get(k, 0) + 1
-        self._usable = np.array([counts[k] == 1 for k in keys], bool)      # not a pinch
-        types = np.asarray(edge_types)
+        if usable is None:
+            keys = [tuple(c) for c in self.corners.tolist()]
+            counts: dict[tuple[int, int], int] = {}
+            for k in keys:
+                counts[k] = counts.get(k, 0) + 1
+            usable = np.array([counts[k] == 1 for k in keys], bool)      # not a pinch
+        self._usable = np.asarray(usable, bool)
+        types = self.edge_types = np.asarray(edge_types)
         mandatory = [k for k in range(n) if types[k] != types[k - 1] and self._usable[k]]
-        if not mandatory:
+        if vertices:
+            mandatory = sorted(set(mandatory) | set(vertices))
+        elif not mandatory:
             mandatory = self._start_pair()
         self.vertices = sorted(mandatory)
         self._heap: list[tuple[float, int, int, int]] = []     # (-error, start, end, split corner)

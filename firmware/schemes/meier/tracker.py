@@ -1,0 +1,98 @@
+"""From one map to the next (meier.md 1.3): the polygon map follows the boundary of the
+observed area as it grows, changing only what the new boundary forces and refining with the
+splits it is given.
+
+Each update traces the new boundary (contours.trace_contours), then:
+1. vanish: a vertex whose corner is no longer on the boundary, or is a pinch, goes;
+2. rings: the vertices left on each contour, in the contour's order, are its ring (a
+   boundary broken in two, or two joined, is the same relink); a contour left with one
+   vertex gets the corner farthest from it, one with none starts from its lowest corner
+   and the farthest from that (meier.md A7); a corner where the crack type changes is a
+   vertex, and each vertex's edge takes its crack's type;
+3. refine: up to max_splits edge splits, the worst edge of all rings first (simplify).
+Vertices never move: a vertex stays where it was sent or goes (the paper's constraint).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from firmware.schemes.meier.contours import Contour, trace_contours
+from firmware.schemes.meier.polygons import PolygonMap
+from firmware.schemes.meier.replica import PolyRecord
+from firmware.schemes.meier.simplify import RingSimplifier
+
+
+class PolygonTracker:
+    def __init__(self, sender_id: int, eps_cells: float) -> None:
+        self.map = PolygonMap(sender_id)
+        self.eps = eps_cells
+        # Per ring: its simplifier and the vertex id at each of its corners that is one.
+        self._rings: list[tuple[RingSimplifier, dict[int, int]]] = []
+
+    def update(self, state: np.ndarray, max_splits: int) -> list[PolyRecord]:
+        """Follow the boundary of `state` (a classified grid; the lattice is its cell
+        corners); the records of what changed."""
+        contours = trace_contours(state)
+        passes: dict[tuple[int, int], int] = {}
+        for c in contours:
+            for p in map(tuple, c.corners.tolist()):
+                passes[p] = passes.get(p, 0) + 1
+        place: dict[tuple[int, int], tuple[int, int]] = {}        # corner -> (contour, position)
+        for label, c in enumerate(contours):
+            for k, p in enumerate(map(tuple, c.corners.tolist())):
+                if passes[p] == 1:
+                    place[p] = (label, k)
+        on: dict[int, dict[int, int]] = {}                       # contour -> {position: vertex}
+        for v in self.map.live_vertices():
+            x, y, _ = self.map.vertex(v)
+            if (x, y) in place:
+                label, k = place[(x, y)]
+                on.setdefault(label, {})[k] = v
+        self._rings = []
+        for label, c in enumerate(contours):
+            usable = np.array([passes[p] == 1 for p in map(tuple, c.corners.tolist())], bool)
+            ring = self._ring_on(c, usable, on.get(label, {}))
+            if ring is not None:
+                self._rings.append(ring)
+        in_rings = {v for _, ids in self._rings for v in ids.values()}
+        for v in self.map.live_vertices():
+            if v not in in_rings:              # off the boundary, on a pinch, or on a contour too small
+                self.map.vanish(v)
+        self.map.relink([[ids[k] for k in rs.vertices] for rs, ids in self._rings])
+        for rs, ids in self._rings:
+            for k, v in ids.items():
+                self.map.set_edge_type(v, int(rs.edge_types[k]))
+        self._refine(max_splits)
+        return self.map.flush()
+
+    def _ring_on(self, c: Contour, usable: np.ndarray, ids: dict[int, int]):
+        """The ring of one contour: its simplifier, and the vertex id at each of its vertex
+        corners (new vertices made for the corners it lacked); None if it has fewer than
+        two usable corners."""
+        if usable.sum() < 2:
+            return None
+        rs = RingSimplifier(c.corners, c.edge_types, self.eps, sorted(ids) or None, usable)
+        if len(rs.vertices) < 2:
+            d = np.hypot(*(c.corners - c.corners[rs.vertices[0]]).T)
+            d[~usable] = -1.0
+            rs = RingSimplifier(c.corners, c.edge_types, self.eps, rs.vertices + [int(np.argmax(d))], usable)
+        ids = dict(ids)
+        for k in rs.vertices:
+            if k not in ids:
+                x, y = (int(v) for v in c.corners[k])
+                ids[k] = self.map.add_vertex(x, y, int(c.edge_types[k]))
+        return rs, ids
+
+    def _refine(self, max_splits: int) -> None:
+        """Split the worst edge of all rings, up to max_splits times."""
+        for _ in range(max_splits):
+            if not self._rings:
+                return
+            rs, ids = max(self._rings, key=lambda r: r[0].worst_error)
+            k = rs.split()
+            if k is None:
+                return
+            before = ids[rs.vertices[rs.vertices.index(k) - 1]]
+            x, y = (int(v) for v in rs.corners[k])
+            ids[k] = self.map.split_edge(before, x, y)
+            self.map.set_edge_type(ids[k], int(rs.edge_types[k]))
