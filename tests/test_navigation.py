@@ -56,3 +56,13 @@ def test_behind_a_door_narrower_than_the_body_the_robot_reports_frontiers_it_can
     report = r.to_json()
     assert report["narrow_gap_frontiers"][0] >= 1 and report["narrow_gap_frontier_area_m2"][0] > 0
     assert report["unreachable_frontiers"] == [0]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+@pytest.mark.parametrize("door_cells", [4, 6])
+def test_other_seeds_end_complete_with_the_hall_seen_and_the_room_only_through_a_door_the_body_fits(tmp_path, seed,
+                                                                                                 door_cells):
+    r = _explore(room_behind_a_door(tmp_path, door_cells=door_cells), (9.0, 3.5), seed=seed)
+    assert r.termination == "complete" and r.coverage >= 0.99, (r.termination, r.coverage)
+    entered = (r.trajectories[0][:, 0] < 4.2).any()
+    assert entered == (door_cells == 6)
