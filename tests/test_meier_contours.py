@@ -68,7 +68,7 @@ def test_filling_the_rings_even_odd_gives_back_the_free_cells(seed):
     inside = np.zeros(state.shape, bool)
     for ring in trace_contours(state):
         x, y = ring.corners[:, 0].astype(float), ring.corners[:, 1].astype(float)
-        x2, y2 = np.roll(x, -1), np.roll(y, -1)
+        y2 = np.roll(y, -1)
         for k in range(len(x)):
             if y[k] == y2[k]:
                 continue                                  # horizontal cracks cross no centre row

@@ -27,14 +27,31 @@ def _edit(pm: PolygonMap, rng: np.random.Generator) -> None:
     if op == 1:
         pm.split_edge(ring[int(rng.integers(0, len(ring)))], int(rng.integers(-500, 500)), int(rng.integers(-500, 500)))
     elif op == 2:
-        pm.remove(ring[int(rng.integers(0, len(ring)))])
+        for v in (ring if len(ring) == 2 else [ring[int(rng.integers(0, len(ring)))]]):
+            pm.vanish(v)                            # a ring of two goes whole
     else:
         every = [v for r in rings for v in r]
         u, w = (every[int(k)] for k in rng.integers(0, len(every), 2))
-        try:
-            pm.break_ring(u, w)
-        except ValueError:
-            pass                                    # would leave a ring of one vertex
+        relinked = _with_edge(rings, u, w)
+        if all(len(r) >= 2 for r in relinked):      # else it would leave a ring of one vertex
+            pm.relink(relinked)
+
+
+def _with_edge(rings: list[list[int]], u: int, w: int) -> list[list[int]]:
+    """The rings with u -> w an edge and pred(w) -> the old succ(u): one ring broken in two,
+    or two joined."""
+    succ = {r[k]: r[(k + 1) % len(r)] for r in rings for k in range(len(r))}
+    pred = {b: a for a, b in succ.items()}
+    succ[u], succ[pred[w]] = w, succ[u]
+    out, seen = [], set()
+    for v in sorted(succ):
+        if v not in seen:
+            ring = [v]
+            while succ[ring[-1]] != v:
+                ring.append(succ[ring[-1]])
+            seen.update(ring)
+            out.append(ring)
+    return out
 
 
 def _history(seed: int, first_stamp: int = 0):
@@ -97,7 +114,7 @@ def test_a_removed_id_is_reused_only_after_its_tombstone_and_its_neighbours_went
     pm = PolygonMap(sender_id=1)
     a, b, c = pm.new_ring([(0, 0, 0), (10, 0, 0), (10, 10, 1)])
     pm.flush()
-    pm.remove(b)                                     # a -> c now; b's tombstone will say so
+    pm.vanish(b)                                     # a -> c now; b's tombstone will say so
     assert b not in pm.new_ring([(50, 50, 0), (60, 50, 0)])     # not sent yet: not free
     sent = pm.flush()
     # The tombstone goes first and both neighbours after it, so the join never rests on
@@ -112,7 +129,8 @@ def test_a_ring_whose_tombstones_were_all_lost_is_gone_after_a_refresh():
     keep = pm.new_ring([(0, 0, 0), (10, 0, 1), (10, 10, 0)])
     gone = pm.new_ring([(50, 50, 0), (60, 50, 1)])
     first = pm.flush()
-    pm.remove(gone[0])                                # a ring of two goes whole
+    for v in gone:                                    # a ring of two goes whole
+        pm.vanish(v)
     lost = pm.flush()
     assert {r.vertex_id for r in lost} == set(gone) and not any(r.alive for r in lost)
     held = first + pm.refresh()                       # every tombstone lost

@@ -26,6 +26,23 @@ def _contours(seed: int):
     return trace_contours(state), float(rng.choice([0.5, 1.0, 1.5, 2.5]))
 
 
+def _usable(corners: np.ndarray) -> np.ndarray:
+    """Corners the contour passes once (not pinches)."""
+    return np.array([sum((c == corners).all(axis=1)) == 1 for c in corners])
+
+
+def _edge_errors(corners: np.ndarray, vertices: list[int], usable: np.ndarray) -> list[float]:
+    """Per edge of the ring, the largest distance of a usable corner of its arc (0 if none)."""
+    n = len(corners)
+    out = []
+    for i, s in enumerate(vertices):
+        e = vertices[(i + 1) % len(vertices)]
+        arc = (s + np.arange(1, (e - s) % n or n)) % n
+        arc = arc[usable[arc]]
+        out.append(float(point_segment_distance(corners[arc], corners[s], corners[e]).max()) if len(arc) else 0.0)
+    return out
+
+
 @settings(max_examples=300, deadline=None)
 @given(st.integers(0, 2**32 - 1))
 def test_splitting_the_worst_edge_first_ends_where_recursive_douglas_peucker_does(seed):
@@ -36,8 +53,7 @@ def test_splitting_the_worst_edge_first_ends_where_recursive_douglas_peucker_doe
         splits = 0
         while rs.split() is not None:
             splits += 1
-        usable = np.array([sum((c == ring.corners).all(axis=1)) == 1 for c in ring.corners])
-        expected = douglas_peucker(ring.corners, start, eps, usable)
+        expected = douglas_peucker(ring.corners, start, eps, _usable(ring.corners))
         assert rs.vertices == expected
         assert splits == len(expected) - len(start)
         assert rs.worst_error == 0.0 and rs.split() is None
@@ -54,15 +70,7 @@ def test_no_corner_is_farther_than_eps_from_its_edge_once_refined(seed):
         v = rs.vertices
         n = len(ring.corners)
         seen = {tuple(c) for c in ring.corners.tolist()}
-        for i, s in enumerate(v):
-            e = v[(i + 1) % len(v)]
-            length = (e - s) % n or n
-            arc = (s + np.arange(1, length)) % n
-            pinch = np.array([sum((ring.corners[k] == ring.corners).all(axis=1)) > 1 for k in arc], bool)
-            arc = arc[~pinch] if len(arc) else arc
-            if len(arc):
-                d = point_segment_distance(ring.corners[arc], ring.corners[s], ring.corners[e])
-                assert d.max() <= eps
+        assert max(_edge_errors(ring.corners, v, _usable(ring.corners))) <= eps
         # Every edge carries one crack type: each type change is a vertex.
         changes = [k for k in range(n) if ring.edge_types[k] != ring.edge_types[k - 1]]
         assert all(k in v or sum((ring.corners[k] == ring.corners).all(axis=1)) > 1 for k in changes)
@@ -75,18 +83,9 @@ def test_each_split_takes_the_worst_edge_of_the_ring(seed):
     contours, eps = _contours(seed)
     for ring in contours:
         rs = RingSimplifier(ring.corners, ring.edge_types, eps)
-        n = len(ring.corners)
-        usable = np.array([sum((c == ring.corners).all(axis=1)) == 1 for c in ring.corners])
+        usable = _usable(ring.corners)
         while True:
-            worst = 0.0
-            v = rs.vertices
-            for i, s in enumerate(v):
-                e = v[(i + 1) % len(v)]
-                arc = (s + np.arange(1, (e - s) % n or n)) % n
-                arc = arc[usable[arc]]
-                if len(arc):
-                    worst = max(worst, float(point_segment_distance(ring.corners[arc], ring.corners[s],
-                                                                    ring.corners[e]).max()))
+            worst = max(_edge_errors(ring.corners, rs.vertices, usable))
             assert rs.worst_error == (worst if worst > eps else 0.0)
             if rs.split() is None:
                 break

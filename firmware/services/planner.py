@@ -182,25 +182,22 @@ class Planner:
         self.frontiers = FrontiersLeft(given_up, found.unreachable)
         return False
 
-    def _near_tried(self, f: Frontier) -> bool:
-        """Did an earlier try go to this frontier? (Its middle shifts a little as the map
-        fills in.)"""
+    def _near(self, cell: tuple[int, int], cells) -> bool:
+        """Is the frontier at this global cell one of those at `cells`, within ban_radius_m?
+        (A frontier's middle shifts a little as the map fills in.)"""
         r2 = (self.p.ban_radius_m / self.p.resolution_m) ** 2
-        return any((f.cell[0] - i) ** 2 + (f.cell[1] - j) ** 2 <= r2 for i, j in self._far_tried)
+        return any((cell[0] - i) ** 2 + (cell[1] - j) ** 2 <= r2 for i, j in cells)
+
+    def _near_tried(self, f: Frontier) -> bool:
+        """Did an earlier try go to this frontier?"""
+        return self._near(f.cell, self._far_tried)
 
     def _left_to_team(self, f: Frontier) -> bool:
-        r2 = (self.p.ban_radius_m / self.p.resolution_m) ** 2
-        return any(team and (f.cell[0] - i) ** 2 + (f.cell[1] - j) ** 2 <= r2
-                   for (i, j), team in self._far_tried.items())
+        return self._near(f.cell, [cell for cell, team in self._far_tried.items() if team])
 
     def _untried(self, cells: list[tuple[int, int]]) -> bool:
-        """Is any of these frontier cells (global) farther than ban_radius_m from every one a
-        tight retry was for? (A frontier's middle shifts a little as the map fills in.)"""
-        if not self._tried_tight:
-            return bool(cells)
-        tried = np.array(sorted(self._tried_tight), np.float64)
-        r_cells = self.p.ban_radius_m / self.p.resolution_m
-        return any(((tried - c) ** 2).sum(axis=1).min() > r_cells ** 2 for c in cells)
+        """Is any of these frontier cells (global) not one a tight retry was for?"""
+        return any(not self._near(c, self._tried_tight) for c in cells)
 
     def _place_in_window(self, candidates: list[Candidate], paths: GridPaths) -> None:
         """Candidates a grid path in the local map reaches are costed by that path, the

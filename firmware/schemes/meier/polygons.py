@@ -1,6 +1,6 @@
 """This robot's polygon map as it tells it: rings of vertices edited by the paper's update
-cases (meier.md 1.3: a new ring for a new contour, an edge split, a vertex that vanished, a
-ring broken in two), and the records that tell a receiver about them (replica.py).
+cases (meier.md 1.3: a new ring for a new contour, an edge split, a vertex that vanished,
+rings broken in two or joined), and the records that tell a receiver about them (replica.py).
 
 A change marks the vertices whose state it changed; flush() sends each marked vertex's
 current state once, so changes queued together coalesce: tombstones first, then live
@@ -98,23 +98,9 @@ class PolygonMap:
             self._mark(k, EDGE_SPLIT)
         return v
 
-    def remove(self, v: int) -> None:
-        """A vertex no longer on the boundary: its neighbours are joined; a ring left with
-        fewer than two vertices goes whole."""
-        s = self._v[v]
-        if s.succ == s.pred or s.succ == v:
-            for u in ([v, s.succ] if s.succ != v else [v]):
-                self._kill(u, u, u)
-            return
-        self._kill(v, s.pred, s.succ)
-        self._v[s.pred].succ = s.succ
-        self._v[s.succ].pred = s.pred
-        self._mark(s.pred, VANISHED)
-        self._mark(s.succ, VANISHED)
-
     def vanish(self, v: int) -> None:
-        """Remove one vertex and join its neighbours, whatever is left of its ring: for an
-        update that relinks the rings before the next flush (tracker)."""
+        """A vertex no longer on the boundary: it goes and its neighbours are joined, whatever
+        is left of its ring (an update relinks the rings before the next flush)."""
         s = self._v[v]
         self._kill(v, s.pred, s.succ)
         if s.pred != v:
@@ -126,17 +112,6 @@ class PolygonMap:
     def live_vertices(self) -> list[int]:
         """Every live vertex, by id (some may be between rings during an update)."""
         return sorted(v for v, s in self._v.items() if s.alive)
-
-    def break_ring(self, u: int, w: int) -> None:
-        """A boundary broken in two: u -> w and pred(w) -> succ(u) become edges, making the
-        stretches u, w, ... and succ(u), ..., pred(w) rings of their own (each at least two)."""
-        u2, w2 = self._v[u].succ, self._v[w].pred
-        if u2 == w or w2 == u2 or w == u:
-            raise ValueError(f"breaking {u} -> {w} would leave a ring of fewer than 2 vertices")
-        self._v[u].succ, self._v[w].pred = w, u
-        self._v[w2].succ, self._v[u2].pred = u2, w2
-        for k in (u, w, u2, w2):
-            self._mark(k, BROKEN)
 
     def relink(self, rings: list[list[int]]) -> None:
         """Make these the rings of the live vertices they name (each at least two, in order):
