@@ -114,7 +114,9 @@ class ExplorerAgent:
             robot_id=self.hal.robot_id, params=self.p, rates=self.rates, local_map=self.local_map,
             waypoints=self.waypoints, topo=self.topo, roster=self.roster,
             send=self._send if self.link is not None else None, mesh=self.hal.mesh if self.hal.has("mesh") else None,
-            last_scan_binned=self._binned_last_scan, has_planned=lambda: self._last_plan_us >= 0))
+            last_scan_binned=self._binned_last_scan, has_planned=lambda: self._last_plan_us >= 0,
+            queued=self.link.queued if self.link is not None else (lambda rtype: 0),
+            current_target=lambda: self.targets.target))
         own_tasks = self.scheme.tasks()
         if self.link is not None:
             own_tasks.insert(0, Task("heartbeat", self.rates.heartbeat_hz, self._task_heartbeat))
@@ -157,8 +159,8 @@ class ExplorerAgent:
                 "paged_out_bytes": int(self.local_map.pager.nbytes)}
 
     # --- tasks ----------------------------------------------------------------------
-    def _send(self, rtype: str, values, priority: int) -> None:
-        self.link.enqueue(rtype, values, priority)
+    def _send(self, rtype: str, values, priority: int, key=None) -> bool:
+        return self.link.enqueue(rtype, values, priority, key=key)
 
     def _task_radio(self, now_us: int) -> None:
         if self.link is None:
@@ -265,8 +267,12 @@ class ExplorerAgent:
             self.follower.follow_closely(self.p.follow_closely_after_stall_m)
 
     def _task_planning(self, now_us: int) -> None:
-        if self._last_scan is None or self.done or self.recovery.active:
+        if self._last_scan is None or self.recovery.active:
             return
+        if self.done:
+            if not self.scheme.wake_up(now_us):
+                return
+            self.done, self.status = False, "exploring"
         pose = self.pose.read()
         self._last_plan_us = now_us
         plan = self.planner.plan(pose.x_m, pose.y_m, now_us)

@@ -782,3 +782,77 @@ def scan_match_scores(field, row0, col0, res, x_m, y_m, yaw_rad, beam_x_m, beam_
                     out[k, a, b] += (1.0 - ty) * ((1.0 - tx) * field[i0, j0] + tx * field[i0, j0 + 1]) \
                         + ty * ((1.0 - tx) * field[i0 + 1, j0] + tx * field[i0 + 1, j0 + 1])
     return out / n
+
+
+@njit(cache=True)
+def crack_contours(free, occupied):
+    """The contours of the True cells of `free` (4-connected) along cell borders (cracks),
+    free on the left (outer boundaries counter-clockwise, holes clockwise), each crack typed
+    1 if the cell across it is `occupied`, else 0 (unknown, or outside the grid). Lattice
+    corner (x, y) = (column, row); a contour starts at its lowest (y, x) corner with its
+    lowest free direction (+x, +y, -x, -y), turns left before going straight before turning
+    right (so free cells touching at a corner stay apart), and contours come in order of
+    their start corner. Returns the corners (n, 2) of all contours one after another, the
+    types of the cracks leaving them, and the offsets where each contour starts (and the end)."""
+    rows, cols = free.shape
+    has = np.zeros((rows + 1, cols + 1, 4), np.bool_)       # [y, x, direction]: a crack not yet followed
+    typ = np.zeros((rows + 1, cols + 1, 4), np.int8)
+    total = 0
+    for r in range(rows):
+        for c in range(cols):
+            if not free[r, c]:
+                continue
+            if r == 0 or not free[r - 1, c]:                  # below: +x along y = r
+                has[r, c, 0] = True
+                typ[r, c, 0] = 1 if r > 0 and occupied[r - 1, c] else 0
+                total += 1
+            if c == cols - 1 or not free[r, c + 1]:           # right: +y along x = c + 1
+                has[r, c + 1, 1] = True
+                typ[r, c + 1, 1] = 1 if c + 1 < cols and occupied[r, c + 1] else 0
+                total += 1
+            if r == rows - 1 or not free[r + 1, c]:           # above: -x along y = r + 1
+                has[r + 1, c + 1, 2] = True
+                typ[r + 1, c + 1, 2] = 1 if r + 1 < rows and occupied[r + 1, c] else 0
+                total += 1
+            if c == 0 or not free[r, c - 1]:                  # left: -y along x = c
+                has[r + 1, c, 3] = True
+                typ[r + 1, c, 3] = 1 if c > 0 and occupied[r, c - 1] else 0
+                total += 1
+    corners = np.empty((total, 2), np.int64)
+    types = np.empty(total, np.int8)
+    starts = np.zeros(total + 1, np.int64)
+    step_x = (1, 0, -1, 0)
+    step_y = (0, 1, 0, -1)
+    n = 0
+    k = 0
+    for y in range(rows + 1):
+        for x in range(cols + 1):
+            while True:
+                first = -1
+                for d in range(4):
+                    if has[y, x, d]:
+                        first = d
+                        break
+                if first < 0:
+                    break
+                hx, hy, d = x, y, first
+                while True:
+                    has[hy, hx, d] = False
+                    corners[n, 0] = hx
+                    corners[n, 1] = hy
+                    types[n] = typ[hy, hx, d]
+                    n += 1
+                    hx += step_x[d]
+                    hy += step_y[d]
+                    home = hx == x and hy == y
+                    nd = -1
+                    for turn in ((d + 1) % 4, d, (d + 3) % 4):
+                        if has[hy, hx, turn] or (home and turn == first):
+                            nd = turn
+                            break
+                    if nd < 0 or (home and nd == first):
+                        break
+                    d = nd
+                k += 1
+                starts[k] = n
+    return corners, types, starts[:k + 1]

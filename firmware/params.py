@@ -152,6 +152,24 @@ class ExplorationParams:
     # Keyframes (the dense baselines' map updates): the scan at each topological vertex,
     # binned to this many bearings, sent to every teammate on the mesh link.
     keyframe_bins: int = _p(360, 'bearings', 8, 3600, "bearings a dense baseline's keyframe scan is binned to")
+    # Meier et al. (firmware.schemes.meier; ../shared/schemes/meier.md sections 2 and 4). The
+    # polygons are refined by at most meier_split_rate_hz edge splits a second (the paper's
+    # split rate, a token bucket), while fewer than meier_backlog_max of their records wait
+    # on the link, to meier_eps_m (one lattice cell: zero error is a vertex at every
+    # staircase step). Eq. (1) uses the LiDAR's range; beta prices a metre of path against
+    # utility (1 / range: a goal 1 m farther from a claimed target gains what 1 m of travel
+    # costs).
+    meier_split_rate_hz: float = _p(1.0, 'splits/s', 0.0, 1000.0, 'edge splits a second at most (the split rate)')
+    meier_eps_m: float = _p(0.2, 'm', 0.0, 10.0, 'polygons are refined until no boundary point is farther from its edge')
+    meier_update_s: float = _p(1.0, 's', 0.05, 3600.0, 'the polygons follow the map this often')
+    meier_backlog_max: int = _p(8, 'records', 1, 64, 'no splits while this many polygon records wait on the link')
+    meier_max_range_m: float = _p(10.0, 'm', 0.1, 1000.0, "the sensor's range in eq. (1)", lo_open=True)
+    meier_beta_per_m: float = _p(0.1, '1/m', 0.0, 100.0, 'utility a metre of path costs (Algorithm 1)', lo_open=True)
+    meier_discount_all: bool = _p(False, 'bool', None, None, "discount every teammate's target, not only lower ids'")
+    meier_target_move_m: float = _p(1.0, 'm', 0.0, 100.0, 'a new target record when the target moves this far')
+    meier_target_keepalive_s: float = _p(30.0, 's', 1.0, 3600.0, 'the target record is repeated this often')
+    meier_team_extent_m: float = _p(250.0, 'm', 10.0, 5000.0, "teammates' polygons are drawn this far around the robot")
+    meier_target_expiry_s: float = _p(90.0, 's', 1.0, 36000.0, "a teammate's target is forgotten this long after its record")
 
     @property
     def entropy_per_cell_bit(self) -> float:

@@ -54,6 +54,8 @@ def warm_up(params: ExplorationParams) -> None:
     kernels.mark_visible(layers.sight, ij[inside, 0], ij[inside, 1], small.team_view_rays,
                          small.d_cam_m / small.resolution_m, layers.sight == kernels.UNKNOWN,
                          np.zeros(layers.sight.shape, bool))
+    # The boundary of the observed area, as Meier et al.'s polygon maps trace it.
+    kernels.crack_contours(layers.state == kernels.FREE, layers.state == kernels.OCCUPIED)
     # The topological map: a record folded, one more merged in, graph costs on the result.
     topo = TopoMap(small.d_build_m, small.d_connect_m)
     topo.add((0, 0, 0, 0, 1, 0, 0))

@@ -135,6 +135,14 @@ class ScriptedHal:
         return agent
 
 
+def paint_box(local_map: LocalMap, x0_m: float, x1_m: float, y0_m: float, y1_m: float, logodds: float) -> None:
+    """Set the log-odds of the window cells from (x0, y0) to (x1, y1) m, both corners' cells
+    included."""
+    i0, j0 = local_map.cell_of(x0_m, y0_m)
+    i1, j1 = local_map.cell_of(x1_m, y1_m)
+    local_map.logodds[i0:i1 + 1, j0:j1 + 1] = logodds
+
+
 class PlannerRig:
     """The shared planner and a scheme over a hand-built local map, without a robot: what
     one planning cycle decides. `local_map.logodds` is painted by the test."""

@@ -185,3 +185,48 @@ def scan_match_scores(field, row0, col0, res, x, y, yaw, beam_x, beam_y, dxs, dy
                                   + ty * (1 - tx) * field[i0 + 1, j0] + ty * tx * field[i0 + 1, j0 + 1])
                 out[k, a, b] = total / len(beam_x) if len(beam_x) else 0.0
     return out
+
+
+def crack_contours(free, occupied):
+    """Contours along cell borders with dicts of outgoing cracks per corner: each free cell
+    adds its border cracks; each contour is walked from its start, left turns first."""
+    rows, cols = free.shape
+    out: dict[tuple[int, int], dict[int, int]] = {}
+
+    def add(x, y, d, r, c):
+        wall = 0 <= r < rows and 0 <= c < cols and bool(occupied[r, c])
+        out.setdefault((x, y), {})[d] = 1 if wall else 0
+
+    def is_free(r, c):
+        return 0 <= r < rows and 0 <= c < cols and bool(free[r, c])
+
+    for r in range(rows):
+        for c in range(cols):
+            if not free[r, c]:
+                continue
+            if not is_free(r - 1, c):
+                add(c, r, 0, r - 1, c)
+            if not is_free(r, c + 1):
+                add(c + 1, r, 1, r, c + 1)
+            if not is_free(r + 1, c):
+                add(c + 1, r + 1, 2, r + 1, c)
+            if not is_free(r, c - 1):
+                add(c, r + 1, 3, r, c - 1)
+    steps = ((1, 0), (0, 1), (-1, 0), (0, -1))
+    corners, types, starts = [], [], [0]
+    for start in sorted(out, key=lambda p: (p[1], p[0])):
+        while out.get(start):
+            here = start
+            first = d = min(out[start])
+            while True:
+                t = out[here].pop(d)
+                corners.append(here)
+                types.append(t)
+                here = (here[0] + steps[d][0], here[1] + steps[d][1])
+                options = out.get(here, {})
+                d = next(k for k in ((d + 1) % 4, d, (d + 3) % 4)
+                         if k in options or (here == start and k == first))
+                if here == start and d == first:
+                    break
+            starts.append(len(corners))
+    return (np.array(corners, np.int64).reshape(-1, 2), np.array(types, np.int8), np.array(starts, np.int64))

@@ -178,7 +178,7 @@ def test_generated_dataclasses_are_frozen_and_complete():
     for d in all_dialects():
         for r in d.records:
             cls = r.values_class
-            assert cls.__name__ == r.name.capitalize() + "Record"
+            assert cls.__name__ == "".join(p.capitalize() for p in r.name.split("_")) + "Record"
             assert [f.name for f in dataclasses.fields(cls)] == [f.name for f in r.fields]
             inst = cls(**{f.name: f.min_value for f in r.fields})
             with pytest.raises(dataclasses.FrozenInstanceError):

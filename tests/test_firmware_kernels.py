@@ -443,3 +443,13 @@ def test_scan_match_scores_matches_reference(seed):
     got = kernels.scan_match_scores(field, row0, col0, res, x, y, yaw, bx, by, dxs, dys, dyaws)
     expected = ref.scan_match_scores(field, row0, col0, res, x, y, yaw, bx, by, dxs, dys, dyaws)
     np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12)
+
+
+@SETTINGS
+@given(grids(values=(0, 1, 2)))
+def test_crack_contours_matches_reference(state):
+    free, occupied = state == 1, state == 2
+    got = kernels.crack_contours(free, occupied)
+    expected = ref.crack_contours(free, occupied)
+    for g, e in zip(got, expected):
+        np.testing.assert_array_equal(g, e)

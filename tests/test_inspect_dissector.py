@@ -64,8 +64,13 @@ def _tshark(tmp_path, frames, dialects=None):
 def test_tshark_decodes_every_field(tmp_path):
     topo = dict(sender_id=3, x_cm=-12345, y_cm=800000, z_cm=-7, presence=1, e_inf_code=200, info_version=0)
     pose = DIALECTS.record("pose")
+    topo_dialect = DIALECTS.dialect_of("topo")
     good = encode_frame(3, 4242, [("topo", topo)] * 2 + [("pose", _extreme(pose, "min"))]
-                        + [(rt.name, _extreme(rt, "max")) for d in DIALECTS for rt in d.records], hops_left=2)
+                        + [(rt.name, _extreme(rt, "max")) for d in (CORE, topo_dialect) for rt in d.records],
+                        hops_left=2)
+    # One frame carries one scheme's dialect: the others' records come in frames of their own.
+    others = [encode_frame(3, 4243 + k, [(rt.name, _extreme(rt, "max")) for rt in d.records])
+              for k, d in enumerate(d for d in DIALECTS if d not in (CORE, topo_dialect))]
     bad = bytearray(good)
     bad[12] ^= 0x01
     # CRC-valid core-only frame whose pose yaw is out of range (32767 cdeg)
@@ -73,8 +78,8 @@ def test_tshark_decodes_every_field(tmp_path):
     pose_bytes[7] = 0x7F
     pose_bytes[8] = 0xFF
     oor = seal(bytes([0x21, 0, 13, 9, 0, 1, 0, 0x08]) + bytes(pose_bytes))
-    text = _tshark(tmp_path, (good, bytes(bad), oor))
-    assert text.count("lorascout frame") == 3
+    text = _tshark(tmp_path, (good, bytes(bad), oor, *others))
+    assert text.count("lorascout frame") == 3 + len(others)
     for needle in ("Sender id: 3", "Sequence number: 4242", "Hops left: 2", "CRC status: good",
                    "Dialect: bayer_faigl (1)", "Dialect: core (0)", "lorascout frame, dialect 1 bayer_faigl",
                    "2 x bayer_faigl.topo", "bayer_faigl.topo record 0", "core.pose record 2",

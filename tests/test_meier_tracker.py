@@ -45,6 +45,10 @@ def _rings_on_contours(tracker, state):
         ks = [p[0][1] for p in places]
         k0 = ks.index(min(ks))
         assert ks[k0:] + ks[:k0] == sorted(ks)                   # in the contour's order
+        types, n = contours[labels.pop()].edge_types, len(contours[places[0][0][0]].corners)
+        for v, k, k_next in zip(ring, ks, ks[1:] + ks[:1]):
+            arc = [(k + j) % n for j in range((k_next - k) % n or n)]
+            assert pm.vertex(v)[2] == types[arc].min()           # a wall only if every crack is one
     return contours
 
 

@@ -31,8 +31,10 @@ def _case(seed: int):
         i, j = (int(v) for v in rng.integers(0, n, 2))
         # Some candidates share a cost class on purpose: whole-metre graph costs tie often.
         graph = float(rng.integers(0, 8)) if rng.random() < 0.8 else math.inf
+        # A scheme's penalty (a utility discount) on some: whole metres tie with costs too.
+        penalty = float(rng.choice([0.0, float(rng.integers(1, 4)), float(rng.uniform(0.0, 3.0))]))
         c = Candidate(x_m=j + 0.5, y_m=i + 0.5, e_bit=100.0, from_team=False, graph_cost_m=graph,
-                      rank=int(rng.integers(0, 3)))
+                      rank=int(rng.integers(0, 3)), penalty_m=penalty)
         c.local_cell = (i, j) if paths.reachable[i, j] else None
         c.cost_m = math.inf if c.local_cell is not None else graph
         candidates.append(c)

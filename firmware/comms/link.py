@@ -217,6 +217,10 @@ class LinkLayer:
     def queue_len(self) -> int:
         return len(self._queue)
 
+    def queued(self, rtype: str) -> int:
+        """Records of this type waiting to be sent."""
+        return sum(1 for e in self._queue if e[2] == rtype)
+
     @property
     def next_seq(self) -> int:
         return self._seq

@@ -20,6 +20,7 @@ SCHEMES: dict[str, tuple[str, str]] = {
     "bayer-faigl": ("firmware.schemes.bayer_faigl", "BayerFaigl"),
     "dense": ("firmware.schemes.dense_baseline", "DenseBaseline"),
     "independent": ("firmware.schemes.independent", "Independent"),
+    "meier": ("firmware.schemes.meier.scheme", "Meier"),
 }
 
 ALIASES: dict[str, str] = {
@@ -27,6 +28,7 @@ ALIASES: dict[str, str] = {
     "minpos": "bayer-faigl:minpos",
     "greedy-full": "dense:greedy",
     "minpos-full": "dense:minpos",
+    "meier-full": "dense:meier",
 }
 
 

@@ -21,9 +21,9 @@ statistics (`stats`) and drawable geometry (`drawables`) instead of reaching in.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -53,7 +53,12 @@ PRIORITY_INFO = 1
 PRIORITY_MOTION = 2
 PRIORITY_STATUS = 3
 
-Send = Callable[[str, Mapping[str, int], int], None]
+
+
+class Send(Protocol):
+    def __call__(self, rtype: str, values: Mapping[str, int], priority: int, key: Hashable | None = None) -> bool:
+        """Queue a record for the air: higher priority first; a queued record with the same
+        key is replaced. False if the link dropped it."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +76,8 @@ class Services:
     mesh: MeshLink | None
     last_scan_binned: Callable[[], BinnedScan]   # the newest scan in world-frame bins
     has_planned: Callable[[], bool]              # a planning cycle has run (waypoints exist)
+    queued: Callable[[str], int] = lambda rtype: 0          # records of a type waiting on the link
+    current_target: Callable[[], Target | None] = lambda: None   # where the robot is heading
 
 
 @dataclass
@@ -151,6 +158,12 @@ class Scheme(ABC):
     def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
         """The candidates the robot should choose among, each with graph_cost_m (its cost
         beyond the local window) and rank set."""
+
+    def wake_up(self, now_us: int) -> bool:
+        """A robot that finished asks this every planning cycle: True if what teammates
+        told it since may show it more to explore (a teammate's map can lag behind, or be
+        wrong, where this robot stopped), so it plans again and goes on if there is."""
+        return False
 
     def after_plan(self, pose: OdometrySample, now_us: int) -> None:
         """After each planning cycle (before a finished robot reports done)."""

@@ -10,6 +10,7 @@ so.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -174,6 +175,10 @@ class LocalMap:
         self._last_passed: tuple[int, int] | None = None
         self._passed_cells = np.zeros((0, 2), np.int64)   # self.passed as an array, for layers()
         self._fits = {tight: BodyFit(params, tight) for tight in (False, True)}
+        # What teammates told this robot about places it has not observed itself, set by a
+        # scheme that shares maps: fills the UNKNOWN cells of a state grid anchored at global
+        # cell (row0, col0). Planning sees it; the log-odds (this robot's own observations) never do.
+        self.team_overlay: Callable[[np.ndarray, int, int], None] | None = None
 
     # --- geometry -------------------------------------------------------------------
     def _anchor_for(self, x_m: float, y_m: float) -> tuple[int, int]:
@@ -306,6 +311,8 @@ class LocalMap:
         p = self.p
         state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
         self._mark_bumps(state, self.row0, self.col0)
+        if self.team_overlay is not None:
+            self.team_overlay(state, self.row0, self.col0)
         fit = self._fits[tight].update(state, self.row0, self.col0)
         traversable = fit.traversable.copy()
         self.open_passed(traversable, state, self.row0, self.col0)
@@ -329,6 +336,8 @@ class LocalMap:
         logodds[self.row0 - r_lo:self.row0 - r_lo + self.n, self.col0 - c_lo:self.col0 - c_lo + self.n] = self.logodds
         state = kernels.classify(logodds, p.logodds_occupied, p.logodds_free)
         self._mark_bumps(state, r_lo, c_lo)
+        if self.team_overlay is not None:
+            self.team_overlay(state, r_lo, c_lo)
         return state, r_lo, c_lo
 
     def _mark_bumps(self, state: np.ndarray, row0: int, col0: int) -> None:

@@ -300,12 +300,13 @@ class FrontiersLeft:
 def settle_choice_costs(candidates: list[Candidate], paths: GridPaths, target: Target | None,
                         resolution_m: float) -> None:
     """Exact costs for every candidate the choice could take, and no more search than that.
-    The choice (TargetKeeper.choose) takes the lowest rank, then the lowest cost, then keeps
-    the current target unless it costs much more. So the search settles the nearest grid
-    candidate of the lowest rank, then every cell up to the cheapest cost of that rank, and
-    the current target's cell; the grid candidates it leaves unsettled all cost more than
-    the cheapest and keep reading inf. The search is Dijkstra's (cells settle in order of
-    cost), so the choice is the one costing every candidate would give."""
+    The choice (TargetKeeper.choose) takes the lowest rank, then the lowest cost plus
+    penalty, then keeps the current target unless it costs much more. So the search settles
+    the nearest grid candidate of the lowest rank, then every cell up to the cheapest cost
+    plus penalty of that rank less the smallest penalty, and the current target's cell; the
+    grid candidates it leaves unsettled all come out dearer than the cheapest and keep
+    reading inf. The search is Dijkstra's (cells settle in order of cost), so the choice is
+    the one costing every candidate would give."""
     r0 = min(c.rank for c in candidates)
     group = [c for c in candidates if c.rank == r0]
     _read_costs(group, paths, resolution_m)     # settled on the way to an earlier choice
@@ -313,7 +314,7 @@ def settle_choice_costs(candidates: list[Candidate], paths: GridPaths, target: T
     if waiting:
         paths.settle_first([c.local_cell[0] for c in waiting], [c.local_cell[1] for c in waiting])
         _read_costs(waiting, paths, resolution_m)
-        bound_m = min(c.cost_m for c in group)
+        bound_m = min(c.cost_m + c.penalty_m for c in group) - min(c.penalty_m for c in group)
         # A little above the bound, so that no cost equal to it after rounding is missed.
         paths.settle_below(bound_m / resolution_m * (1.0 + 1e-9) + 1e-9)
         _read_costs(waiting, paths, resolution_m)

@@ -40,6 +40,7 @@ class Candidate:
     cost_m: float = math.inf        # this robot's cost (local map where it can, else the graph)
     graph_cost_m: float = math.inf  # this robot's cost beyond the local window (the scheme's)
     rank: int = 0                   # lower is better; the scheme's ranking, before cost
+    penalty_m: float = 0.0          # the scheme's utility discount, in metres of path added to the cost
     local_cell: tuple[int, int] | None = None   # its local map cell, if a grid path reaches it
 
 
@@ -116,14 +117,14 @@ class TargetKeeper:
         self._wanting_recovery &= keys
 
     def choose(self, candidates: list[Candidate]) -> Candidate:
-        """Lowest rank, then the closest. The current target is kept unless another is
-        clearly better, so the robot does not dither."""
-        key = lambda c: (c.rank, c.cost_m, c.x_m, c.y_m)  # noqa: E731
+        """Lowest rank, then the closest (cost plus the scheme's penalty). The current target
+        is kept unless another is clearly better, so the robot does not dither."""
+        key = lambda c: (c.rank, c.cost_m + c.penalty_m, c.x_m, c.y_m)  # noqa: E731
         best = min(candidates, key=key)
         if self.target is not None:
             for c in candidates:
                 if (c.x_m, c.y_m) == (self.target.x_m, self.target.y_m) and c.rank <= best.rank \
-                        and best.cost_m >= 0.8 * c.cost_m:
+                        and best.cost_m + best.penalty_m >= 0.8 * (c.cost_m + c.penalty_m):
                     return c
         return best
 

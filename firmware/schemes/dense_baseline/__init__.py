@@ -17,14 +17,16 @@ from firmware.services.targets import Target
 from hal.samples import OdometrySample
 
 # The inner scheme of each variant, as a registry spec.
-INNER = {"greedy": "bayer-faigl:greedy", "minpos": "bayer-faigl:minpos"}
+INNER = {"greedy": "bayer-faigl:greedy", "minpos": "bayer-faigl:minpos", "meier": "meier:targets"}
 
 
 class DenseBaseline(Scheme):
     name = "dense"
     doc = "a scheme's coordination plus dense keyframe scans over an ideal mesh link"
     variants = {"greedy": "Greedy with dense maps shared over an unconstrained link",
-                "minpos": "MinPos with dense maps shared over an unconstrained link"}
+                "minpos": "MinPos with dense maps shared over an unconstrained link",
+                "meier": "Meier et al.'s target broadcast and utility discount with dense maps shared over an "
+                         "unconstrained link (the paper's comparison)"}
     default_variant = "minpos"
     needs = frozenset({"mesh"})
 

@@ -21,10 +21,6 @@ from firmware import kernels
 FRONTIER_EDGE = 0
 WALL_EDGE = 1
 
-# Directions of a step along a crack: +x, +y, -x, -y (counter-clockwise order, so a left
-# turn is the next one).
-_STEPS = ((1, 0), (0, 1), (-1, 0), (0, -1))
-
 
 class Contour(NamedTuple):
     corners: np.ndarray      # int64 (n, 2): lattice (x, y) of each corner, in order
@@ -33,55 +29,9 @@ class Contour(NamedTuple):
 
 def trace_contours(state: np.ndarray) -> list[Contour]:
     """The contours of the FREE cells of a classified grid (kernels.UNKNOWN / FREE /
-    OCCUPIED), in order of their lowest (y, x) corner."""
-    free = state == kernels.FREE
-    rows, cols = free.shape
-    padded = np.zeros((rows + 2, cols + 2), bool)
-    padded[1:-1, 1:-1] = free
-    occupied = np.zeros((rows + 2, cols + 2), bool)
-    occupied[1:-1, 1:-1] = state == kernels.OCCUPIED
-    # Outgoing cracks per start corner: direction index -> (edge type).
-    out: dict[tuple[int, int], dict[int, int]] = {}
-
-    def add(x: int, y: int, d: int, across_r: int, across_c: int) -> None:
-        out.setdefault((x, y), {})[d] = WALL_EDGE if occupied[across_r + 1, across_c + 1] else FRONTIER_EDGE
-
-    for r, c in zip(*np.nonzero(free)):
-        r, c = int(r), int(c)
-        if not padded[r, c + 1]:          # below is not free: step +x along y = r
-            add(c, r, 0, r - 1, c)
-        if not padded[r + 1, c + 2]:      # right: step +y along x = c + 1
-            add(c + 1, r, 1, r, c + 1)
-        if not padded[r + 2, c + 1]:      # above: step -x along y = r + 1
-            add(c + 1, r + 1, 2, r + 1, c)
-        if not padded[r + 1, c]:          # left: step -y along x = c
-            add(c, r + 1, 3, r, c - 1)
-    contours = []
-    for start in sorted(out, key=lambda p: (p[1], p[0])):
-        while out.get(start):
-            contours.append(_follow(out, start))
-    return contours
-
-
-def _follow(out: dict[tuple[int, int], dict[int, int]], start: tuple[int, int]) -> Contour:
-    """Walk one contour from start, taking each crack once, left turns first."""
-    corners, types = [], []
-    here = start
-    first = d = min(out[start])
-    while True:
-        t = out[here].pop(d)
-        if not out[here]:
-            del out[here]
-        corners.append(here)
-        types.append(t)
-        here = (here[0] + _STEPS[d][0], here[1] + _STEPS[d][1])
-        options = out.get(here, {})
-        # Left turn, straight on, right turn: the first that exists. Back at the start, the
-        # crack it began with counts among them (taken already: the contour closes there).
-        d = next(k for k in ((d + 1) % 4, d, (d + 3) % 4) if k in options or (here == start and k == first))
-        if here == start and d == first:
-            break
-    return Contour(np.array(corners, np.int64).reshape(-1, 2), np.array(types, np.int8))
+    OCCUPIED), in order of their lowest (y, x) corner (kernels.crack_contours)."""
+    corners, types, starts = kernels.crack_contours(state == kernels.FREE, state == kernels.OCCUPIED)
+    return [Contour(corners[a:b], types[a:b]) for a, b in zip(starts[:-1].tolist(), starts[1:].tolist())]
 
 
 def signed_area(corners: np.ndarray) -> float:

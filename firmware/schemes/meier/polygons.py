@@ -41,6 +41,7 @@ class PolygonMap:
         self._sent: dict[int, int] = {}             # vertex id -> stamp of its last record
         self._tombstones: dict[int, tuple[int, int, int]] = {}   # id -> (pred, succ, stamp) as sent
         self._next_id = 1
+        self._refreshed_up_to = 0                   # refresh_next's place in its round
 
     # --- what the map holds ---------------------------------------------------------------
     def rings(self) -> list[list[int]]:
@@ -145,7 +146,25 @@ class PolygonMap:
         """Every live vertex again, then which ids are alive, block by block (every block
         that ever held an id)."""
         out: list[PolyRecord | AliveRecord] = self.flush()
-        out += [self._record(v, REFRESH) for v in sorted(v for v, s in self._v.items() if s.alive)]
+        out += [self._record(v, REFRESH) for v in self.live_vertices()]
+        return out + self._alive_blocks()
+
+    def refresh_next(self, count: int) -> list[PolyRecord | AliveRecord]:
+        """A refresh a few records at a time: the next `count` live vertices by id, round
+        robin; after the last of a round, which ids are alive. Over a round a receiver that
+        lost records gets what refresh() would give it."""
+        out: list[PolyRecord | AliveRecord] = []
+        live = [v for v in self.live_vertices() if v > self._refreshed_up_to]
+        for v in live[:count]:
+            out.append(self._record(v, REFRESH))
+            self._refreshed_up_to = v
+        if len(live) <= count:
+            out += self._alive_blocks()
+            self._refreshed_up_to = 0
+        return out
+
+    def _alive_blocks(self) -> list[AliveRecord]:
+        out = []
         for block in range((self._next_id - 1) // ALIVE_BLOCK_IDS + 1):
             bits = 0
             for v in range(block * ALIVE_BLOCK_IDS, (block + 1) * ALIVE_BLOCK_IDS):

@@ -19,14 +19,17 @@ import numpy as np
 
 
 def point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from each point (rows of p) to the closed segment a-b."""
+    """Distance from each point (rows of p) to the closed segment a-b: one segment for all
+    points, or one per point (rows of a and b)."""
     p = np.asarray(p, np.float64)
     a = np.asarray(a, np.float64)
     ab = np.asarray(b, np.float64) - a
-    denom = float(ab @ ab)
-    t = np.zeros(len(p)) if denom == 0.0 else np.clip((p - a) @ ab / denom, 0.0, 1.0)
-    closest = a + t[:, None] * ab
-    return np.hypot(p[:, 0] - closest[:, 0], p[:, 1] - closest[:, 1])
+    ab_x, ab_y = ab[..., 0], ab[..., 1]
+    denom = ab_x * ab_x + ab_y * ab_y
+    dx, dy = p[:, 0] - a[..., 0], p[:, 1] - a[..., 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(denom == 0.0, 0.0, np.clip((dx * ab_x + dy * ab_y) / denom, 0.0, 1.0))
+    return np.hypot(dx - t * ab_x, dy - t * ab_y)
 
 
 class RingSimplifier:
@@ -48,15 +51,35 @@ class RingSimplifier:
             usable = np.array([counts[k] == 1 for k in keys], bool)      # not a pinch
         self._usable = np.asarray(usable, bool)
         types = self.edge_types = np.asarray(edge_types)
-        mandatory = [k for k in range(n) if types[k] != types[k - 1] and self._usable[k]]
+        mandatory = np.nonzero((types != np.roll(types, 1)) & self._usable)[0].tolist()
         if vertices:
             mandatory = sorted(set(mandatory) | set(vertices))
         elif not mandatory:
             mandatory = self._start_pair()
         self.vertices = sorted(mandatory)
         self._heap: list[tuple[float, int, int, int]] = []     # (-error, start, end, split corner)
-        for i, s in enumerate(self.vertices):
-            self._push(s, self.vertices[(i + 1) % len(self.vertices)])
+        self._push_all()
+
+    def _push_all(self) -> None:
+        """_push for every edge at once: the contour rotated to start at the first vertex,
+        each edge's arc is a run of corners."""
+        n, v0 = len(self.corners), self.vertices[0]
+        ends = [v - v0 for v in self.vertices[1:]] + [n]
+        order = (v0 + np.arange(n)) % n
+        edge = np.repeat(np.arange(len(ends)), np.diff([0] + ends))       # rotated corner -> its edge
+        starts = np.array(self.vertices)
+        stops = np.array(self.vertices[1:] + self.vertices[:1])
+        d = point_segment_distance(self.corners[order], self.corners[starts[edge]], self.corners[stops[edge]])
+        inner = np.ones(n, bool)
+        inner[np.array([0] + ends[:-1])] = False                            # the edges' own start corners
+        d[~(inner & self._usable[order])] = -1.0
+        heads = np.array([0] + ends[:-1])
+        worst = np.maximum.reduceat(d, heads)
+        idx = np.arange(n)
+        first = np.minimum.reduceat(np.where(d == worst[edge], idx, n), heads)   # the first of equals
+        for i in np.nonzero(worst > self.eps)[0].tolist():
+            self._heap.append((-float(worst[i]), int(starts[i]), int(stops[i]), int(order[first[i]])))
+        heapq.heapify(self._heap)
 
     def _start_pair(self) -> list[int]:
         usable = np.nonzero(self._usable)[0]
@@ -83,6 +106,13 @@ class RingSimplifier:
         k = int(np.argmax(d))
         if d[k] > self.eps:
             heapq.heappush(self._heap, (-float(d[k]), s, e, int(arc[k])))
+
+    def vertex_edge_types(self) -> list[int]:
+        """The type of each polygon edge (from each vertex to the next, in `vertices` order):
+        a wall only if every crack along it is one, so that no frontier is ever drawn as a
+        wall (a type change at a pinch corner, which is never a vertex, mixes types)."""
+        v0, n = self.vertices[0], len(self.corners)
+        return np.minimum.reduceat(np.roll(self.edge_types, -v0), [v - v0 for v in self.vertices]).tolist()
 
     @property
     def worst_error(self) -> float:

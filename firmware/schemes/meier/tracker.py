@@ -8,7 +8,7 @@ Each update traces the new boundary (contours.trace_contours), then:
    boundary broken in two, or two joined, is the same relink); a contour left with one
    vertex gets the corner farthest from it, one with none starts from its lowest corner
    and the farthest from that (meier.md A7); a corner where the crack type changes is a
-   vertex, and each vertex's edge takes its crack's type;
+   vertex, and a vertex's edge is a wall only if every crack along it is one;
 3. refine: up to max_splits edge splits, the worst edge of all rings first (simplify).
 Vertices never move: a vertex stays where it was sent or goes (the paper's constraint).
 """
@@ -28,11 +28,13 @@ class PolygonTracker:
         self.eps = eps_cells
         # Per ring: its simplifier and the vertex id at each of its corners that is one.
         self._rings: list[tuple[RingSimplifier, dict[int, int]]] = []
+        self.splits = 0          # edge splits the last update made
 
-    def update(self, state: np.ndarray, max_splits: int) -> list[PolyRecord]:
-        """Follow the boundary of `state` (a classified grid; the lattice is its cell
-        corners); the records of what changed."""
-        contours = trace_contours(state)
+    def update(self, state: np.ndarray, max_splits: int, row0: int = 0, col0: int = 0) -> list[PolyRecord]:
+        """Follow the boundary of `state` (a classified grid whose cell (0, 0) is cell
+        (row0, col0) of the lattice; vertices sit on the lattice's corners); the records of
+        what changed."""
+        contours = [Contour(c.corners + (col0, row0), c.edge_types) for c in trace_contours(state)]
         passes: dict[tuple[int, int], int] = {}
         for c in contours:
             for p in map(tuple, c.corners.tolist()):
@@ -59,11 +61,17 @@ class PolygonTracker:
             if v not in in_rings:              # off the boundary, on a pinch, or on a contour too small
                 self.map.vanish(v)
         self.map.relink([[ids[k] for k in rs.vertices] for rs, ids in self._rings])
+        self.splits = self._refine(max_splits)
         for rs, ids in self._rings:
-            for k, v in ids.items():
-                self.map.set_edge_type(v, int(rs.edge_types[k]))
-        self._refine(max_splits)
+            for k, t in zip(rs.vertices, rs.vertex_edge_types()):
+                self.map.set_edge_type(ids[k], t)
         return self.map.flush()
+
+    @property
+    def worst_error(self) -> float:
+        """The largest distance (lattice units) from a boundary corner to its polygon edge,
+        beyond eps (0 when every edge is within eps)."""
+        return max((rs.worst_error for rs, _ in self._rings), default=0.0)
 
     def _ring_on(self, c: Contour, usable: np.ndarray, ids: dict[int, int]):
         """The ring of one contour: its simplifier, and the vertex id at each of its vertex
@@ -83,16 +91,16 @@ class PolygonTracker:
                 ids[k] = self.map.add_vertex(x, y, int(c.edge_types[k]))
         return rs, ids
 
-    def _refine(self, max_splits: int) -> None:
-        """Split the worst edge of all rings, up to max_splits times."""
-        for _ in range(max_splits):
+    def _refine(self, max_splits: int) -> int:
+        """Split the worst edge of all rings, up to max_splits times; how many it split."""
+        for done in range(max_splits):
             if not self._rings:
-                return
+                return done
             rs, ids = max(self._rings, key=lambda r: r[0].worst_error)
             k = rs.split()
             if k is None:
-                return
+                return done
             before = ids[rs.vertices[rs.vertices.index(k) - 1]]
             x, y = (int(v) for v in rs.corners[k])
             ids[k] = self.map.split_edge(before, x, y)
-            self.map.set_edge_type(ids[k], int(rs.edge_types[k]))
+        return max_splits

@@ -1,0 +1,87 @@
+"""Meier et al.'s dialect: polygon vertices, which ids are alive, and target points on the
+air (meier.md 5.2). Dialect id 2.
+
+`poly` is the state of one vertex of the sender's polygon map at the sender's record counter
+(replica.PolyRecord); `poly_alive` says which ids of a block of 64 are alive at a stamp
+(replica.AliveRecord); `target` is the paper's target point transmission (TPT): where the
+sender is heading, or that it released its target, with a 7-bit sequence number so that an
+older one never overrides a newer.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from firmware.comms.schema import SENDER, Dialect, Field, RecordType, position_cm
+from firmware.schemes.meier.replica import ALIVE_BLOCK_IDS, MAX_VERTEX_ID, STAMP_BITS, AliveRecord, PolyRecord
+
+DIALECT_ID = 2
+
+# Lattice units on the air: a vertex sits on a corner of the coarse raster (meier.md A9).
+LATTICE_M = 0.2
+LATTICE_BITS = 15
+TARGET_SEQ_BITS = 7
+
+_STAMP = Field("stamp", STAMP_BITS, unit="records", doc="sender's polygon record counter (RFC 1982 order)")
+
+POLY = RecordType(
+    1, "poly", 12,
+    (
+        SENDER, _STAMP,
+        Field("vertex_id", 12, unit="id", lo=1, hi=MAX_VERTEX_ID, doc="the vertex"),
+        Field("pred_id", 12, unit="id", hi=MAX_VERTEX_ID, doc="its predecessor in its ring"),
+        Field("succ_id", 12, unit="id", hi=MAX_VERTEX_ID, doc="its successor in its ring"),
+        Field("x_lat", LATTICE_BITS, True, "0.2 m", doc="x on the lattice of the shared frame"),
+        Field("y_lat", LATTICE_BITS, True, "0.2 m", doc="y on the lattice of the shared frame"),
+        Field("edge_type", 2, unit="enum", hi=1, doc="edge to the successor: 0 frontier, 1 wall"),
+        Field("alive", 1, unit="bool", doc="0: removed, its predecessor and successor are joined"),
+        Field("kind", 3, unit="enum", hi=4, doc="why it was sent: 0 refresh, 1 edge split, 2 vanished, "
+              "3 broken boundary, 4 emerged (accounting only)"),
+    ),
+    doc="One vertex of the sender's polygon map at a stamp (Meier et al. ES / B / VP / EP packets).",
+)
+
+POLY_ALIVE = RecordType(
+    2, "poly_alive", 12,
+    (
+        SENDER, _STAMP,
+        Field("block", 6, unit="64 ids", doc="ids 64 block .. 64 block + 63"),
+        Field("alive_lo", 32, unit="bits", doc="which ids 64 block + 0..31 are alive"),
+        Field("alive_hi", 32, unit="bits", doc="which ids 64 block + 32..63 are alive"),
+    ),
+    doc="Which vertex ids of a block are alive at a stamp: a refresh for receivers that lost records.",
+)
+
+TARGET = RecordType(
+    3, "target", 8,
+    (
+        SENDER, position_cm("x"), position_cm("y"),
+        Field("claimed", 1, unit="bool", doc="1: heading there; 0: the sender released its target"),
+        Field("target_seq", TARGET_SEQ_BITS, unit="targets", doc="sender's target counter (RFC 1982 order)"),
+    ),
+    doc="Target point transmission (TPT): where the sender is heading (Meier et al. Algorithm 1 line 8).",
+)
+
+DIALECT = Dialect(DIALECT_ID, "meier", (POLY, POLY_ALIVE, TARGET))
+
+assert POLY.bits_used == 96 and POLY_ALIVE.bits_used == 94
+assert (1 << 6) * ALIVE_BLOCK_IDS > MAX_VERTEX_ID
+
+
+def poly_values(r: PolyRecord) -> dict[str, int]:
+    return {"sender_id": r.sender_id, "stamp": r.stamp, "vertex_id": r.vertex_id, "pred_id": r.pred_id,
+            "succ_id": r.succ_id, "x_lat": r.x_lat, "y_lat": r.y_lat, "edge_type": r.edge_type,
+            "alive": int(r.alive), "kind": r.kind}
+
+
+def poly_record(v: Mapping[str, int]) -> PolyRecord:
+    return PolyRecord(v["sender_id"], v["stamp"], v["vertex_id"], v["pred_id"], v["succ_id"], v["x_lat"],
+                      v["y_lat"], v["edge_type"], bool(v["alive"]), v["kind"])
+
+
+def alive_values(r: AliveRecord) -> dict[str, int]:
+    return {"sender_id": r.sender_id, "stamp": r.stamp, "block": r.block,
+            "alive_lo": r.alive_bits & 0xFFFFFFFF, "alive_hi": r.alive_bits >> 32}
+
+
+def alive_record(v: Mapping[str, int]) -> AliveRecord:
+    return AliveRecord(v["sender_id"], v["stamp"], v["block"], v["alive_lo"] | v["alive_hi"] << 32)

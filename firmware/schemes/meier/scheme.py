@@ -1,0 +1,312 @@
+"""Meier, Stachniss, Burgard (ECMR 2005) as a scheme: polygon maps under a split-rate budget,
+target broadcast and utility discount (meier.md).
+
+Variant `polygons` (the paper's scheme, over LoRa): every meier_update_s the robot's own map
+is pooled into its monotone coarse raster (raster.CoarseRaster), the polygon map follows its
+boundary (tracker.PolygonTracker: the forced updates, and as many edge splits as the split
+rate's token bucket holds, none while meier_backlog_max polygon records still wait on the
+link), and the vertices it changed go out as `poly` records, the forced ones first. Between
+changes a slow round robin re-sends live vertices and which ids are alive, for receivers
+that lost records. Teammates' records build their polygon maps (replica.Replica, a pure
+function of the records held), rasterised into a team layer that fills the cells this robot
+has not observed itself (LocalMap.team_overlay): it plans on the combined map.
+
+Variant `targets`: the coordination alone (the dense baseline adds dense maps to it for the
+paper's comparison, `meier-full`).
+
+Both: the robot broadcasts its target (`target` records: on a new target, every
+meier_target_keepalive_s, and a release when it has none) and discounts candidates near
+teammates' targets (coordination.discount). Beyond the local window it routes along a
+graph of its own places, as the no-sharing baseline does.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from firmware import kernels
+from firmware.scheduler import Task
+from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, PRIORITY_STATUS, Candidate, PlanningView, Scheme,
+                                   Services, cost_along_graph)
+from firmware.schemes.meier.coordination import TARGET_SEQ_MOD, TeamTargets, discount
+from firmware.schemes.meier.polygons import EDGE_SPLIT
+from firmware.schemes.meier.raster import CoarseRaster, rasterise_rings
+from firmware.schemes.meier.records import (DIALECT, LATTICE_M, alive_record, alive_values, poly_record,
+                                            poly_values)
+from firmware.schemes.meier.replica import AliveRecord, PolyRecord, Replica
+from firmware.schemes.meier.tracker import PolygonTracker
+from firmware.services.pose import TravelMilestones
+from hal.samples import OdometrySample
+
+# Link priorities of polygon records: what the map forces (a vertex gone, a ring broken or
+# new) before refinement, refinement before the refresh.
+PRIORITY_FORCED = PRIORITY_MOTION
+PRIORITY_SPLIT = PRIORITY_INFO
+PRIORITY_REFRESH = 0
+# Records of the slow refresh round robin, per second, sent only while nothing else waits.
+REFRESH_RECORDS_PER_S = 0.5
+# Coarse cells around an own waypoint beyond the local window that a teammate's map must
+# show known for the waypoint to count as explored by the team.
+COVERED_RADIUS_CELLS = 1
+
+
+class Meier(Scheme):
+    name = "meier"
+    doc = "Meier et al.'s polygon maps under a split-rate budget, target broadcast and utility discount"
+    variants = {"polygons": "polygon maps over LoRa within a split rate, target broadcast and utility discount",
+                "targets": "target broadcast and utility discount, no maps shared"}
+    default_variant = "polygons"
+    dialect = DIALECT
+    needs = frozenset({"radio", "shared_frame"})
+
+    def attach(self, services: Services) -> None:
+        super().attach(services)
+        p = services.params
+        self._milestones = TravelMilestones(p.d_build_m)
+        self.team_targets = TeamTargets(p.meier_target_expiry_s)
+        self._target_seq = 0
+        self._said: tuple[float, float] | None = None      # the target last claimed on the air
+        self._said_us = 0
+        self.counts = {"target_records_sent": 0, "poly_records_sent": 0, "poly_alive_records_sent": 0,
+                       "edge_splits": 0, "records_dropped_by_link": 0}
+        self.records_by_kind = [0] * 5      # poly records by kind (polygons.REFRESH .. EMERGED)
+        self._team_news = False             # the team layer changed since wake_up() last looked
+        self._woken_us = 0
+        if self.variant != "polygons":
+            return
+        k = LATTICE_M / p.resolution_m
+        if abs(k - round(k)) > 1e-9:
+            raise ValueError(f"scheme meier: resolution_m = {p.resolution_m:g} m does not divide the polygons' "
+                             f"lattice of {LATTICE_M:g} m")
+        self._k = round(k)
+        self.own = CoarseRaster(self._k)
+        self.tracker = PolygonTracker(services.robot_id, p.meier_eps_m / LATTICE_M)
+        self._tokens = 0.0
+        self._outbox: dict[int, tuple[int, PolyRecord | AliveRecord]] = {}   # vertex id (or -block-1) -> (priority, record)
+        self._refresh_credit = 0.0
+        self.replicas: dict[int, Replica] = {}
+        self._team: tuple[np.ndarray, int, int] | None = None     # team layer (coarse), its row0, col0
+        self._team_stale = False
+        services.local_map.team_overlay = self._overlay
+
+    def tasks(self) -> list[Task]:
+        if self.variant != "polygons":
+            return []
+        return [Task("polygons", 1.0 / self.s.params.meier_update_s, self._task_polygons),
+                Task("poly_outbox", self.s.rates.radio_hz, self._task_outbox)]
+
+    # --- own polygons -----------------------------------------------------------------
+    def _task_polygons(self, now_us: int) -> None:
+        s, p = self.s, self.s.params
+        lm = s.local_map
+        self.own.merge(lm.state_of(0, lm.n, 0, lm.n), lm.row0, lm.col0)
+        self._tokens = min(max(1.0, p.meier_split_rate_hz * p.meier_update_s),
+                           self._tokens + p.meier_split_rate_hz * p.meier_update_s)
+        backlog = len(self._outbox) + s.queued("poly")
+        splits = int(self._tokens) if backlog < p.meier_backlog_max else 0
+        records = self.tracker.update(self.own.cells, splits, self.own.row0, self.own.col0)
+        self._tokens -= self.tracker.splits
+        self.counts["edge_splits"] += self.tracker.splits
+        for r in records:
+            self._post(r, PRIORITY_SPLIT if r.kind == EDGE_SPLIT else PRIORITY_FORCED)
+        if not self._outbox and not s.queued("poly"):
+            self._refresh_credit = min(1.0, self._refresh_credit + REFRESH_RECORDS_PER_S * p.meier_update_s)
+            if self._refresh_credit >= 1.0:
+                self._refresh_credit -= 1.0
+                for r in self.tracker.map.refresh_next(1):
+                    self._post(r, PRIORITY_REFRESH)
+        if self._team_stale:
+            self._rebuild_team_layer()
+
+    def _post(self, r: PolyRecord | AliveRecord, priority: int) -> None:
+        """Into the outbox; a newer state of the same vertex (or block) replaces one waiting."""
+        key = r.vertex_id if isinstance(r, PolyRecord) else -1 - r.block
+        held = self._outbox.pop(key, None)
+        self._outbox[key] = (max(priority, held[0]) if held else priority, r)
+
+    def _task_outbox(self, now_us: int) -> None:
+        """Feed the link from the outbox, the most urgent first, keeping at most
+        meier_backlog_max polygon records queued there."""
+        s = self.s
+        room = s.params.meier_backlog_max - s.queued("poly") - s.queued("poly_alive")
+        if room <= 0 or not self._outbox:
+            return
+        order = sorted(self._outbox, key=lambda key: -self._outbox[key][0])   # stable: oldest first within a priority
+        for key in order[:room]:
+            priority, r = self._outbox.pop(key)
+            if isinstance(r, PolyRecord):
+                ok = s.send("poly", poly_values(r), priority, key=("poly", r.vertex_id))
+                self.counts["poly_records_sent"] += 1
+                self.records_by_kind[r.kind] += 1
+            else:
+                ok = s.send("poly_alive", alive_values(r), priority, key=("poly_alive", r.block))
+                self.counts["poly_alive_records_sent"] += 1
+            if not ok:
+                self.counts["records_dropped_by_link"] += 1
+
+    # --- teammates' polygons ----------------------------------------------------------
+    def on_record(self, rtype: str, values: Mapping[str, int], now_us: int) -> None:
+        if rtype == "target":
+            self.team_targets.heard(values["sender_id"], values["x_cm"] / 100.0, values["y_cm"] / 100.0,
+                                    bool(values["claimed"]), values["target_seq"], now_us)
+            return
+        if self.variant != "polygons" or values["sender_id"] == self.s.robot_id:
+            return
+        record = poly_record(values) if rtype == "poly" else alive_record(values)
+        self.replicas.setdefault(record.sender_id, Replica()).add(record)
+        self._team_stale = True
+
+    def wake_up(self, now_us: int) -> bool:
+        """The team layer changed since this robot last looked: a teammate's map may now
+        show a way on where it stopped. It looks at most every known_map_refresh_s (a look
+        is a plan over everything mapped)."""
+        if not self._team_news or now_us - self._woken_us < self.s.params.known_map_refresh_s * 1e6:
+            return False
+        self._team_news, self._woken_us = False, now_us
+        return True
+
+    def _rebuild_team_layer(self) -> None:
+        """The team layer: every teammate's polygons rasterised, occupied over free over
+        unknown (meier.md 1.5)."""
+        self._team_stale = False
+        self._team_news = True
+        per_sender = []
+        for sender in sorted(self.replicas):
+            rings = self.replicas[sender].rings()
+            if rings:
+                per_sender.append(([np.array([(v.x_lat, v.y_lat) for v in ring], np.int64) for ring in rings],
+                                   [np.array([v.edge_type == 1 for v in ring]) for ring in rings]))
+        if not per_sender:
+            self._team = None
+            return
+        corners = np.concatenate([np.concatenate(r) for r, _ in per_sender])
+        (c_lo, r_lo), (c_hi, r_hi) = corners.min(axis=0) - 1, corners.max(axis=0) + 1
+        # No farther than meier_team_extent_m from the window's centre: what teammates say
+        # beyond is of no use yet, and a record's coordinates reach 3 km.
+        lm = self.s.local_map
+        reach = int(self.s.params.meier_team_extent_m / LATTICE_M)
+        mid_r, mid_c = (lm.row0 + lm.n // 2) // self._k, (lm.col0 + lm.n // 2) // self._k
+        r_lo, r_hi = max(int(r_lo), mid_r - reach), min(int(r_hi), mid_r + reach)
+        c_lo, c_hi = max(int(c_lo), mid_c - reach), min(int(c_hi), mid_c + reach)
+        if r_hi <= r_lo or c_hi <= c_lo:
+            self._team = None
+            return
+        shape = (r_hi - r_lo, c_hi - c_lo)
+        team = np.zeros(shape, np.uint8)
+        for rings, wall in per_sender:
+            np.maximum(team, rasterise_rings(rings, wall, shape, r_lo, c_lo), out=team)
+        self._team = (team, r_lo, c_lo)
+
+    def _team_cells(self, row0: int, col0: int, rows: int, cols: int) -> np.ndarray | None:
+        """The team layer on the fine grid of `rows` x `cols` anchored at global fine cell
+        (row0, col0); None if there is none."""
+        if self._team is None:
+            return None
+        team, t_r0, t_c0 = self._team
+        cr = (row0 + np.arange(rows)) // self._k - t_r0
+        cc = (col0 + np.arange(cols)) // self._k - t_c0
+        rin = (cr >= 0) & (cr < team.shape[0])
+        cin = (cc >= 0) & (cc < team.shape[1])
+        out = np.zeros((rows, cols), np.uint8)
+        if rin.any() and cin.any():
+            out[np.ix_(rin, cin)] = team[np.ix_(cr[rin], cc[cin])]
+        return out
+
+    def _overlay(self, state: np.ndarray, row0: int, col0: int) -> None:
+        team = self._team_cells(row0, col0, *state.shape)
+        if team is not None:
+            fill = (state == kernels.UNKNOWN) & (team != kernels.UNKNOWN)
+            state[fill] = team[fill]
+
+    # --- coordination -----------------------------------------------------------------
+    def filter_waypoints(self, view: PlanningView) -> None:
+        """Own waypoints beyond the local window whose surroundings a teammate's map shows
+        known are explored (inside the window the combined map re-scores them)."""
+        if self.variant != "polygons" or self._team is None:
+            return
+        lm, k, r = self.s.local_map, self._k, COVERED_RADIUS_CELLS
+        res = lm.p.resolution_m
+        keep = []
+        for w in self.s.waypoints.items:
+            wi, wj = lm.cell_of(w.x_m, w.y_m)
+            if lm.in_window(wi, wj):
+                keep.append(w)
+                continue
+            gi, gj = math.floor(w.y_m / res), math.floor(w.x_m / res)
+            around = self._team_cells(gi - r * k, gj - r * k, (2 * r + 1) * k, (2 * r + 1) * k)
+            if not (around != kernels.UNKNOWN).all():
+                keep.append(w)
+        self.s.waypoints.items[:] = keep
+
+    def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
+        p = self.s.params
+        cost_along_graph(view, own)
+        done = {rid for rid, m in self.s.roster.members().items() if m.done}
+        targets = [xy for rid, xy in self.team_targets.active(view.now_us).items()
+                   if rid not in done and (p.meier_discount_all or rid < self.s.robot_id)]
+        discount(own, targets, self.s.local_map, view.sight, p.meier_max_range_m, p.meier_beta_per_m)
+        return own
+
+    def after_plan(self, pose: OdometrySample, now_us: int) -> None:
+        """Broadcast the target (Algorithm 1, line 8): a new one, a keep-alive, a release."""
+        p, target = self.s.params, self.s.current_target()
+        if target is not None:
+            moved = self._said is None or math.dist(self._said, (target.x_m, target.y_m)) > p.meier_target_move_m
+            if moved:
+                self._target_seq = (self._target_seq + 1) % TARGET_SEQ_MOD
+            if moved or now_us - self._said_us >= p.meier_target_keepalive_s * 1e6:
+                self._said, self._said_us = (target.x_m, target.y_m), now_us
+                self._send_target(target.x_m, target.y_m, True)
+        elif self._said is not None:
+            self._target_seq = (self._target_seq + 1) % TARGET_SEQ_MOD
+            self._send_target(*self._said, False)
+            self._said = None
+
+    def _send_target(self, x_m: float, y_m: float, claimed: bool) -> None:
+        self.s.send("target", {"sender_id": self.s.robot_id, "x_cm": round(x_m * 100), "y_cm": round(y_m * 100),
+                               "claimed": int(claimed), "target_seq": self._target_seq},
+                    PRIORITY_STATUS, key="target")
+        self.counts["target_records_sent"] += 1
+
+    def on_travel(self, pose: OdometrySample, now_us: int) -> None:
+        """A place of its own every d_build of travel, to route beyond the window (never sent)."""
+        if not self._milestones.due(pose.x_m, pose.y_m) or not self.s.has_planned():
+            return
+        self.s.topo.add((self.s.robot_id, round(pose.x_m * 100), round(pose.y_m * 100), 0, 1, 0, 0))
+        self._milestones.mark(pose.x_m, pose.y_m)
+
+    # --- for the host -----------------------------------------------------------------
+    def polygons(self) -> list[list[tuple[int, int, int, int]]]:
+        """This robot's polygon map: rings of (vertex id, x_lat, y_lat, edge type)."""
+        if self.variant != "polygons":
+            return []
+        m = self.tracker.map
+        return [[(v, *m.vertex(v)) for v in ring] for ring in m.rings()]
+
+    def polygons_of(self, sender: int) -> list[list[tuple[int, int, int, int]]]:
+        """A teammate's polygon map as this robot holds it, in the same form."""
+        replica = self.replicas.get(sender) if self.variant == "polygons" else None
+        if replica is None:
+            return []
+        return [[(v.vertex_id, v.x_lat, v.y_lat, v.edge_type) for v in ring] for ring in replica.rings()]
+
+    def stats(self) -> dict[str, int]:
+        kinds = ("refresh", "edge_split", "vanished", "broken", "emerged")
+        out = dict(self.counts)
+        if self.variant == "polygons":
+            out.update({f"poly_{k}_records": n for k, n in zip(kinds, self.records_by_kind)})
+            out["polygon_vertices"] = len(self.tracker.map.live_vertices())
+        return out
+
+    def drawables(self) -> dict:
+        if self.variant != "polygons":
+            return {}
+        rings = self.polygons()
+        pts = np.array([(x, y) for ring in rings for _, x, y, _ in ring], np.float64).reshape(-1, 2) * LATTICE_M
+        segs = [((a[1], a[2]), (b[1], b[2])) for ring in rings for a, b in zip(ring, ring[1:] + ring[:1])]
+        return {"title": "own polygon map (red: vertices of frontier edges)", "what": "vertices",
+                "points": pts, "segments": np.array(segs, np.float64).reshape(-1, 2, 2) * LATTICE_M,
+                "highlight": np.array([t == 0 for ring in rings for *_, t in ring], bool)}
+
