@@ -42,7 +42,6 @@ class RingSimplifier:
         usable: which corners may be vertices (default: those the contour passes once)."""
         self.corners = np.asarray(corners, np.int64)
         self.eps = eps
-        n = len(self.corners)
         if usable is None:
             keys = [tuple(c) for c in self.corners.tolist()]
             counts: dict[tuple[int, int], int] = {}
@@ -111,7 +110,7 @@ class RingSimplifier:
         """The type of each polygon edge (from each vertex to the next, in `vertices` order):
         a wall only if every crack along it is one, so that no frontier is ever drawn as a
         wall (a type change at a pinch corner, which is never a vertex, mixes types)."""
-        v0, n = self.vertices[0], len(self.corners)
+        v0 = self.vertices[0]
         return np.minimum.reduceat(np.roll(self.edge_types, -v0), [v - v0 for v in self.vertices]).tolist()
 
     @property
