@@ -133,6 +133,11 @@ class ExplorerAgent:
         self.ticks += 1
         self.scheduler.run_due(self.hal.clock.now_us(), profiler)
 
+    @property
+    def settled(self) -> bool:
+        """Finished, and nothing left that its scheme has to tell the team."""
+        return self.done and not self.scheme.has_news()
+
     def stats(self) -> dict[str, int]:
         """How this robot's targets ended, the frontiers it stopped short of (0 while it
         explores: those it gave up on, and those behind gaps narrower than its body), its
@@ -281,6 +286,7 @@ class ExplorerAgent:
             self.follower.clear()
             self.hal.drive.command(0.0, 0.0)
             self.done = True
+            self.scheme.on_finished()
             # Nothing left that this robot can get to; say so if it gave up on frontiers its
             # body could reach (frontiers behind gaps narrower than the body are no way on).
             self.status = "complete_with_unreachable_frontiers" if self.planner.frontiers.given_up else "complete"

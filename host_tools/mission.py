@@ -26,6 +26,7 @@ from hal.sim.clock import SimClock
 from hal.sim.factory import build_sim_hal
 from hal.sim.mesh import SimMeshBus
 from hal.sim.radio import SimRadioModem
+from host_tools import polygon_metrics
 from host_tools.capture import CaptureWriter
 from host_tools.cmd_inspect import sender_stats
 from radio_sim.air_log import AirFrame
@@ -93,6 +94,7 @@ class MissionResult:
     agents: list = field(repr=False, default_factory=list)
     reachable: np.ndarray | None = field(repr=False, default=None)
     air_frames: list[AirFrame] = field(repr=False, default_factory=list)   # every transmission
+    polygon_maps: dict | None = None     # schemes with polygon maps: host_tools.polygon_metrics.report
 
     @property
     def sim_speedup(self) -> float:
@@ -140,6 +142,7 @@ class MissionResult:
             "air_log_sha256": self.air_log_sha256,
             "radio_stats": self.radio,
             "explorer_stats": self.explorer_stats(),
+            **({"polygon_maps": self.polygon_maps} if self.polygon_maps is not None else {}),
             # Wall-clock figures: the only keys that differ between identical runs.
             "wall_s": round(self.wall_s, 3),
             "sim_speedup": round(self.sim_speedup, 2),
@@ -255,8 +258,18 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
             agent = ExplorerAgent(hal, params, rates, scheme, profile, team_size=cfg.robots)
             agent.setup()
             agents.append(agent)
+        sampler = polygon_metrics.ErrorSampler() if polygon_metrics.has_polygons(agents) else None
+        if sampler is not None:
+            outer = observer
+
+            def observer(now_us: int, agents: list[ExplorerAgent]) -> None:
+                sampler(now_us, agents)
+                if outer is not None:
+                    outer(now_us, agents)
         result = _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air_frames, mesh,
                        progress, profiler, rates, should_stop, observer)
+        if sampler is not None:
+            result.polygon_maps = polygon_metrics.report(agents, sampler, result.sim_s)
         result.coverage_raw = float((world.observed_union() & reachable_raw).sum()) / int(reachable_raw.sum())
         result.start_poses = poses
         completed = True
@@ -360,7 +373,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
                 observer(now, agents)
             next_sample_us += COVERAGE_SAMPLE_US
             sample_pose_errors = True
-        if all(a.done for a in agents) or now >= max_us:
+        if all(a.settled for a in agents) or now >= max_us:
             break
         if should_stop is not None and should_stop():
             interrupted = True

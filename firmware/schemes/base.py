@@ -165,6 +165,14 @@ class Scheme(ABC):
         wrong, where this robot stopped), so it plans again and goes on if there is."""
         return False
 
+    def on_finished(self) -> None:
+        """The robot found nothing more to explore and stopped (wake_up may start it again)."""
+
+    def has_news(self) -> bool:
+        """Something this robot still has to tell its team (records of its own waiting to
+        go): a mission in which every robot finished ends once no robot has any."""
+        return False
+
     def after_plan(self, pose: OdometrySample, now_us: int) -> None:
         """After each planning cycle (before a finished robot reports done)."""
 

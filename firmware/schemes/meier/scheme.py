@@ -47,6 +47,8 @@ PRIORITY_SPLIT = PRIORITY_INFO
 PRIORITY_REFRESH = 0
 # Records of the slow refresh round robin, per second, sent only while nothing else waits.
 REFRESH_RECORDS_PER_S = 0.5
+# A record handed to the link is on the air and read by the receivers within this long.
+NEWS_ON_AIR_S = 1.0
 # Coarse cells around an own waypoint beyond the local window that a teammate's map must
 # show known for the waypoint to count as explored by the team.
 COVERED_RADIUS_CELLS = 1
@@ -73,6 +75,7 @@ class Meier(Scheme):
                        "edge_splits": 0, "records_dropped_by_link": 0}
         self.records_by_kind = [0] * 5      # poly records by kind (polygons.REFRESH .. EMERGED)
         self._team_news = False             # the team layer changed since wake_up() last looked
+        self._finished = False              # the robot stopped: no more splits or refresh
         self._woken_us = 0
         if self.variant != "polygons":
             return
@@ -86,6 +89,7 @@ class Meier(Scheme):
         self._tokens = 0.0
         self._outbox: dict[int, tuple[int, PolyRecord | AliveRecord]] = {}   # vertex id (or -block-1) -> (priority, record)
         self._refresh_credit = 0.0
+        self._outbox_us = self._news_until_us = 0     # the outbox task's clock; has_news until then
         self.replicas: dict[int, Replica] = {}
         self._team: tuple[np.ndarray, int, int] | None = None     # team layer (coarse), its row0, col0
         self._team_stale = False
@@ -105,13 +109,13 @@ class Meier(Scheme):
         self._tokens = min(max(1.0, p.meier_split_rate_hz * p.meier_update_s),
                            self._tokens + p.meier_split_rate_hz * p.meier_update_s)
         backlog = len(self._outbox) + s.queued("poly")
-        splits = int(self._tokens) if backlog < p.meier_backlog_max else 0
+        splits = int(self._tokens) if backlog < p.meier_backlog_max and not self._finished else 0
         records = self.tracker.update(self.own.cells, splits, self.own.row0, self.own.col0)
         self._tokens -= self.tracker.splits
         self.counts["edge_splits"] += self.tracker.splits
         for r in records:
             self._post(r, PRIORITY_SPLIT if r.kind == EDGE_SPLIT else PRIORITY_FORCED)
-        if not self._outbox and not s.queued("poly"):
+        if not self._outbox and not s.queued("poly") and not self._finished:
             self._refresh_credit = min(1.0, self._refresh_credit + REFRESH_RECORDS_PER_S * p.meier_update_s)
             if self._refresh_credit >= 1.0:
                 self._refresh_credit -= 1.0
@@ -130,7 +134,11 @@ class Meier(Scheme):
         """Feed the link from the outbox, the most urgent first, keeping at most
         meier_backlog_max polygon records queued there."""
         s = self.s
-        room = s.params.meier_backlog_max - s.queued("poly") - s.queued("poly_alive")
+        waiting = s.queued("poly") + s.queued("poly_alive")
+        self._outbox_us = now_us
+        if waiting or self._outbox:
+            self._news_until_us = now_us + int(NEWS_ON_AIR_S * 1e6)
+        room = s.params.meier_backlog_max - waiting
         if room <= 0 or not self._outbox:
             return
         order = sorted(self._outbox, key=lambda key: -self._outbox[key][0])   # stable: oldest first within a priority
@@ -165,7 +173,16 @@ class Meier(Scheme):
         if not self._team_news or now_us - self._woken_us < self.s.params.known_map_refresh_s * 1e6:
             return False
         self._team_news, self._woken_us = False, now_us
+        self._finished = False
         return True
+
+    def on_finished(self) -> None:
+        self._finished = True
+
+    def has_news(self) -> bool:
+        """Polygon records waiting, in the outbox or on the link, or sent less than
+        NEWS_ON_AIR_S ago (on the air, or not yet read by the receivers)."""
+        return self.variant == "polygons" and self._outbox_us < self._news_until_us
 
     def _rebuild_team_layer(self) -> None:
         """The team layer: every teammate's polygons rasterised, occupied over free over
@@ -291,6 +308,15 @@ class Meier(Scheme):
         if replica is None:
             return []
         return [[(v.vertex_id, v.x_lat, v.y_lat, v.edge_type) for v in ring] for ring in replica.rings()]
+
+    def observed(self) -> tuple[np.ndarray, int, int] | None:
+        """This robot's own observed area on the polygons' lattice (its monotone coarse
+        raster) and the raster's global (row0, col0); None without polygons."""
+        return (self.own.cells, self.own.row0, self.own.col0) if self.variant == "polygons" else None
+
+    def team_layer(self) -> tuple[np.ndarray, int, int] | None:
+        """What this robot's teammates' polygons say, on the same lattice; None if nothing."""
+        return self._team if self.variant == "polygons" else None
 
     def stats(self) -> dict[str, int]:
         kinds = ("refresh", "edge_split", "vanished", "broken", "emerged")

@@ -1,0 +1,21 @@
+"""Meier et al.'s scheme end to end on the simulated HAL: a small team explores a cave by
+itself over an ideal link, each robot's copy of each teammate's polygon map equals the
+original at the end, and what it knows from the polygons is close to what the team saw."""
+from host_tools.mission import MissionConfig, run_mission
+
+
+def test_a_team_finishes_and_every_copy_of_every_polygon_map_is_exact_at_the_end():
+    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=3, seed=2, strategy="meier", max_sim_s=900))
+    j = r.to_json()
+    assert r.termination == "complete" and r.coverage >= 0.99 and r.robots_in_wall == 0
+    maps = j["polygon_maps"]
+    assert maps["replica_mismatch_end_max"] == 0.0
+    assert max(maps["approximation_error_end"]) < 0.05
+    assert all(n > 0 for n in j["explorer_stats"]["poly_records_sent"])
+    assert all(n > 0 for n in j["explorer_stats"]["target_records_sent"])
+    assert all(0.0 < hz <= 1.0 for hz in maps["split_rate_hz"])      # meier_split_rate_hz
+
+
+def test_schemes_without_polygons_report_none():
+    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=2, seed=2, strategy="meier-full", max_sim_s=900))
+    assert "polygon_maps" not in r.to_json() and r.termination == "complete"
