@@ -116,6 +116,7 @@ class ExplorerAgent:
             send=self._send if self.link is not None else None, mesh=self.hal.mesh if self.hal.has("mesh") else None,
             last_scan_binned=self._binned_last_scan, has_planned=lambda: self._last_plan_us >= 0,
             queued=self.link.queued if self.link is not None else (lambda rtype: 0),
+            on_air_until_us=self.link.on_air_until_us if self.link is not None else (lambda: 0),
             current_target=lambda: self.targets.target))
         own_tasks = self.scheme.tasks()
         if self.link is not None:

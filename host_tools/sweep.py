@@ -264,13 +264,17 @@ def frame_bytes_one_record(strategy: str) -> int:
     return frame_size_bytes({max(dialect.records, key=lambda r: r.size_bytes).name: 1})
 
 
-# (strategy, reference, ratio bound, comparison) pairs that Bayer & Faigl's claims and
-# issue 4's acceptance are about: p_max of the first over p_max of the second.
+# (strategy, reference, ratio bound, comparison) pairs that the papers' claims and the
+# issues' acceptance are about (Bayer & Faigl: issue 4; Meier et al.: issue 22): p_max of
+# the first over p_max of the second, where a sweep ran both.
 COMPARISONS = (
     ("minpos", "minpos-full", "<= 1.10", "topological map vs dense maps"),
     ("minpos", "independent", "<= 0.70", "MinPos vs no communication"),
     ("minpos", "greedy", "<= 1.00", "MinPos vs Greedy"),
     ("greedy", "greedy-full", "<= 1.10", "topological map vs dense maps"),
+    ("meier", "meier-full", "<= 1.10", "polygon maps vs dense maps"),
+    ("meier", "independent", "<= 0.70", "Meier et al. vs no communication"),
+    ("meier", "minpos", "<= 1.10", "Meier et al. vs MinPos"),
 )
 
 

@@ -65,3 +65,16 @@ def test_rings_far_outside_the_grid_cost_nothing_and_draw_nothing():
     assert (got == F).all()                                      # inside the huge triangle, far from its edges
     got = rasterise_rings([ring + 40000], [np.ones(3, bool)], (20, 30), 100, 100)
     assert (got == U).all()
+
+
+def test_a_small_hole_the_sender_did_not_see_into_is_drawn_free_a_large_one_unknown():
+    room = np.array([[0, 0], [20, 0], [20, 20], [0, 20]], np.int64)            # counter-clockwise
+    small = np.array([[5, 5], [5, 7], [7, 7], [7, 5]], np.int64)               # clockwise: 4 cells
+    large = np.array([[10, 10], [10, 16], [16, 16], [16, 10]], np.int64)       # clockwise: 36 cells
+    frontier = [np.zeros(4, bool)] * 3
+    got = rasterise_rings([room, small, large], frontier, (20, 20), 0, 0, min_hole_cells=10.0)
+    assert (got[5:7, 5:7] == F).all() and (got[10:16, 10:16] == U).all()
+    walled = rasterise_rings([room, small, large], [np.zeros(4, bool), np.ones(4, bool), np.zeros(4, bool)],
+                             (20, 20), 0, 0, min_hole_cells=10.0)
+    assert (walled[5:7, 5:7] == O).all()                                      # its walls are drawn
+    assert (rasterise_rings([room, small], frontier[:2], (20, 20), 0, 0)[5:7, 5:7] == U).all()

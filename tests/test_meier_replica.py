@@ -110,18 +110,35 @@ def test_the_same_records_in_another_order_give_the_same_rings_and_never_raise(s
         assert len({v[0] for v in ring}) == len(ring)
 
 
-def test_a_removed_id_is_reused_only_after_its_tombstone_and_its_neighbours_went_out():
+def test_a_split_costs_one_record_and_a_vanished_vertex_one():
     pm = PolygonMap(sender_id=1)
     a, b, c = pm.new_ring([(0, 0, 0), (10, 0, 0), (10, 10, 1)])
-    pm.flush()
-    pm.vanish(b)                                     # a -> c now; b's tombstone will say so
-    assert b not in pm.new_ring([(50, 50, 0), (60, 50, 0)])     # not sent yet: not free
+    records = pm.flush()
+    d = pm.split_edge(a, 5, -1)
+    split = pm.flush()
+    assert [r.vertex_id for r in split] == [d]                  # it claims a -> d -> b itself
+    pm.vanish(c)
+    gone = pm.flush()
+    assert [(r.vertex_id, r.alive) for r in gone] == [(c, False)]   # its tombstone joins b -> a
+    assert _replica_rings(records + split + gone) == _sender_rings(pm)
+
+
+def test_a_removed_id_is_reused_after_its_tombstone_and_every_receiver_stays_exact():
+    pm = PolygonMap(sender_id=1)
+    a, b, c, d = pm.new_ring([(0, 0, 0), (10, 0, 0), (10, 10, 1), (0, 10, 0)])
+    records = pm.flush()
+    pm.vanish(b)                                     # a -> c now
+    assert b not in pm.new_ring([(50, 50, 0), (60, 50, 0)])     # its tombstone has not gone out
+    records += pm.flush()
+    assert b in pm.new_ring([(70, 70, 0), (80, 70, 0)])         # now it has: the smallest removed id
     sent = pm.flush()
-    # The tombstone goes first and both neighbours after it, so the join never rests on
-    # the tombstone alone for a receiver that got every record.
-    order = [r.vertex_id for r in sent]
-    assert order.index(b) < order.index(a) and order.index(b) < order.index(c)
-    assert b in pm.new_ring([(70, 70, 0), (80, 70, 0)])
+    # b's new state replaces its old one at every receiver, so a's link to c is sent again.
+    assert a in {r.vertex_id for r in sent}
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        held = records + sent
+        rng.shuffle(held)
+        assert _replica_rings(held) == _sender_rings(pm)
 
 
 def test_a_ring_whose_tombstones_were_all_lost_is_gone_after_a_refresh():

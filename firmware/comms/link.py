@@ -221,6 +221,10 @@ class LinkLayer:
         """Records of this type waiting to be sent."""
         return sum(1 for e in self._queue if e[2] == rtype)
 
+    def on_air_until_us(self) -> int:
+        """When this node's last frame ends on the air (0 before its first)."""
+        return self._tx_log[-1][1] if self._tx_log else 0
+
     @property
     def next_seq(self) -> int:
         return self._seq

@@ -77,6 +77,7 @@ class Services:
     last_scan_binned: Callable[[], BinnedScan]   # the newest scan in world-frame bins
     has_planned: Callable[[], bool]              # a planning cycle has run (waypoints exist)
     queued: Callable[[str], int] = lambda rtype: 0          # records of a type waiting on the link
+    on_air_until_us: Callable[[], int] = lambda: 0           # when this robot's last frame ends on the air
     current_target: Callable[[], Target | None] = lambda: None   # where the robot is heading
 
 

@@ -2,21 +2,22 @@
 cases (meier.md 1.3: a new ring for a new contour, an edge split, a vertex that vanished,
 rings broken in two or joined), and the records that tell a receiver about them (replica.py).
 
-A change marks the vertices whose state it changed; flush() sends each marked vertex's
-current state once, so changes queued together coalesce: tombstones first, then live
-vertices, so that a live neighbour's newer record overrides the join a tombstone claims.
-refresh() re-sends every live vertex and which ids are alive, for receivers that lost some.
-A removed vertex's id is reused only once its tombstone went out and both neighbours it
-names were sent again after it (or are gone): until then the tombstone may be the only
-record of their link, and the id's next record would replace it. (Neighbours are marked by
-the removal, so they go out in the same flush, after the tombstone.)
+A change marks the vertices it touched; flush() sends as few records as make a receiver of
+every record hold exactly these rings: the state of each vertex that is new, moved, retyped
+or removed (tombstones first), then, for every live vertex whose successor a receiver would
+still get wrong, its record again. It knows what a receiver would get by keeping one itself
+(a replica of its own records), so an edge split costs one record (the new vertex claims both
+its links) and a vertex that vanished one (its tombstone joins its neighbours). A removed
+vertex's id is reused once its tombstone went out, the smallest first: the replica check
+re-sends whatever link the old tombstone was the only record of. refresh() re-sends every live vertex and which ids
+are alive, for receivers that lost some.
 """
 from __future__ import annotations
 
+import heapq
 from dataclasses import dataclass
 
-from firmware.schemes.meier.replica import (ALIVE_BLOCK_IDS, MAX_VERTEX_ID, STAMP_MOD, AliveRecord,
-                                            PolyRecord, newer)
+from firmware.schemes.meier.replica import ALIVE_BLOCK_IDS, MAX_VERTEX_ID, STAMP_MOD, AliveRecord, PolyRecord, Replica
 
 # Why a vertex's record was sent (PolyRecord.kind; accounting and the inspector only).
 REFRESH, EDGE_SPLIT, VANISHED, BROKEN, EMERGED = 0, 1, 2, 3, 4
@@ -38,8 +39,9 @@ class PolygonMap:
         self._stamp = first_stamp % STAMP_MOD
         self._v: dict[int, _State] = {}
         self._dirty: dict[int, int] = {}            # vertex id -> kind of the change
-        self._sent: dict[int, int] = {}             # vertex id -> stamp of its last record
-        self._tombstones: dict[int, tuple[int, int, int]] = {}   # id -> (pred, succ, stamp) as sent
+        self._said: dict[int, tuple[int, int, int, bool]] = {}   # id -> (x, y, type, alive) last sent
+        self._mirror = Replica()                    # what a receiver of every record sent holds
+        self._free: list[int] = []                  # removed ids (a heap; some may live again)
         self._next_id = 1
         self._refreshed_up_to = 0                   # refresh_next's place in its round
 
@@ -137,9 +139,22 @@ class PolygonMap:
     # --- records --------------------------------------------------------------------------
     def flush(self) -> list[PolyRecord]:
         """The records of every vertex changed since the last flush: tombstones, then live."""
-        order = sorted(self._dirty, key=lambda v: (self._v[v].alive, v))
-        out = [self._record(v, self._dirty[v]) for v in order]
-        self._dirty.clear()
+        out = []
+        for v in sorted(self._dirty, key=lambda v: (self._v[v].alive, v)):
+            st = self._v[v]
+            said = self._said.get(v)
+            if said is None and not st.alive:
+                continue                            # made and removed between two flushes
+            if said != (st.x_lat, st.y_lat, st.edge_type, st.alive):
+                out.append(self._record(v, self._dirty[v]))
+        kinds = self._dirty
+        while True:
+            succ = self._mirror.successors()
+            wrong = [v for v, st in sorted(self._v.items()) if st.alive and succ.get(v) != st.succ]
+            if not wrong:
+                break
+            out += [self._record(v, kinds.get(v, BROKEN)) for v in wrong]
+        self._dirty = {}
         return out
 
     def refresh(self) -> list[PolyRecord | AliveRecord]:
@@ -181,11 +196,11 @@ class PolygonMap:
 
     def _record(self, v: int, kind: int) -> PolyRecord:
         s = self._v[v]
-        stamp = self._next_stamp()
-        self._sent[v] = stamp
-        if not s.alive:
-            self._tombstones[v] = (s.pred, s.succ, stamp)
-        return PolyRecord(self.sender_id, stamp, v, s.pred, s.succ, s.x_lat, s.y_lat, s.edge_type, s.alive, kind)
+        r = PolyRecord(self.sender_id, self._next_stamp(), v, s.pred, s.succ, s.x_lat, s.y_lat, s.edge_type,
+                       s.alive, kind)
+        self._said[v] = (s.x_lat, s.y_lat, s.edge_type, s.alive)
+        self._mirror.add(r)
+        return r
 
     def _mark(self, v: int, kind: int) -> None:
         self._dirty.setdefault(v, kind)
@@ -194,17 +209,26 @@ class PolygonMap:
         s = self._v[v]
         s.alive, s.pred, s.succ = False, pred, succ
         self._mark(v, VANISHED)
+        heapq.heappush(self._free, v)
 
     def _new_id(self) -> int:
-        """The smallest id free to reuse (see the module's note), else a new one."""
-        for v in sorted(self._tombstones):
+        """The smallest id removed before the last flush (its tombstone went out: a vertex
+        never moves on the air, it goes and an id comes back), else a new one."""
+        held_back = []
+        found = None
+        while self._free:
+            v = heapq.heappop(self._free)
+            if self._v[v].alive:
+                continue                            # reused already
             if v in self._dirty:
+                held_back.append(v)                 # removed since the last flush
                 continue
-            pred, succ, stamp = self._tombstones[v]
-            if all(not self.alive(n) or (n in self._sent and newer(self._sent[n], stamp))
-                   for n in (pred, succ) if n != v):
-                del self._tombstones[v]
-                return v
+            found = v
+            break
+        for v in held_back:
+            heapq.heappush(self._free, v)
+        if found is not None:
+            return found
         if self._next_id > MAX_VERTEX_ID:
             raise RuntimeError(f"more than {MAX_VERTEX_ID} vertices alive or waiting to be reused")
         self._next_id += 1

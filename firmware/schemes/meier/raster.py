@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from firmware import kernels
+from firmware.schemes.meier.contours import signed_area
 
 # Coarse cells the own raster grows by at a time, so it is not reallocated every update.
 GROW_CELLS = 32
@@ -78,10 +79,12 @@ class CoarseRaster:
 
 
 def rasterise_rings(rings: list[np.ndarray], wall: list[np.ndarray], shape: tuple[int, int],
-                    row0: int, col0: int) -> np.ndarray:
+                    row0: int, col0: int, min_hole_cells: float = 0.0) -> np.ndarray:
     """The coarse states of the grid of `shape` anchored at global coarse cell (row0, col0)
     that one sender's rings say: each ring an (n, 2) int array of lattice (x, y) corners in
-    order, wall[i][k] true if the edge from corner k to k + 1 is a wall."""
+    order, wall[i][k] true if the edge from corner k to k + 1 is a wall. Holes (clockwise
+    rings) of less than min_hole_cells are not cut out of the free area around them (their
+    walls are drawn): a pocket the sender did not see into, too small to send anyone to."""
     rows, cols = shape
     out = np.full(shape, kernels.UNKNOWN, np.uint8)
     if not rings:
@@ -89,9 +92,10 @@ def rasterise_rings(rings: list[np.ndarray], wall: list[np.ndarray], shape: tupl
     a = np.concatenate(rings).astype(np.float64)
     b = np.concatenate([np.roll(r, -1, axis=0) for r in rings]).astype(np.float64)
     is_wall = np.concatenate(wall).astype(bool)
+    small_hole = np.concatenate([np.full(len(r), 0.0 < -signed_area(r) < min_hole_cells) for r in rings])
     # Even-odd fill: each non-horizontal edge flips the cells of the rows it crosses (within
     # the grid) whose centres lie right of the crossing.
-    steep = a[:, 1] != b[:, 1]
+    steep = (a[:, 1] != b[:, 1]) & ~small_hole
     ea, eb = a[steep], b[steep]
     y_lo = np.maximum(np.minimum(ea[:, 1], eb[:, 1]), row0).astype(np.int64)
     y_hi = np.minimum(np.maximum(ea[:, 1], eb[:, 1]), row0 + rows).astype(np.int64)
@@ -106,8 +110,8 @@ def rasterise_rings(rings: list[np.ndarray], wall: list[np.ndarray], shape: tupl
     flips = (np.bincount(flat, minlength=rows * (cols + 1)) % 2).astype(np.uint8).reshape(rows, cols + 1)
     free = np.bitwise_xor.accumulate(flips, axis=1)[:, :cols] == 1
     out[free] = kernels.FREE
-    # Walls: the band of cells just right of each wall edge, sampled where the band can
-    # fall in the grid.
+    # Walls (of every ring): the band of cells just right of each wall edge, sampled where
+    # the band can fall in the grid.
     is_wall &= (a != b).any(axis=1)        # a ring of one vertex has an edge of no length
     wa, wb = a[is_wall], b[is_wall]
     if len(wa):

@@ -94,9 +94,13 @@ class Replica:
             return bool(block.alive_bits >> (r.vertex_id % ALIVE_BLOCK_IDS) & 1)
         return r.alive
 
-    def rings(self) -> list[list[Vertex]]:
-        """The sender's rings as this robot knows them (see the module's rules)."""
-        alive = {v: r for v, r in self._vertices.items() if self._alive(r)}
+    def successors(self) -> dict[int, int]:
+        """The successor of every alive vertex that has one (rules 1 and 2)."""
+        alive = {v for v, r in self._vertices.items() if self._alive(r)}
+        return {v: head for v, head in self._claims(alive).items() if v in alive}
+
+    def _claims(self, alive) -> dict[int, int]:
+        """tail -> head of the newest claim with that tail."""
         succ: dict[int, tuple[int, int]] = {}        # tail -> (head, stamp of the claim)
 
         def claim(tail: int, head: int, stamp: int) -> None:
@@ -110,6 +114,12 @@ class Replica:
                 claim(r.vertex_id, r.succ_id, r.stamp)
             else:
                 claim(r.pred_id, r.succ_id, r.stamp)
+        return {tail: head for tail, (head, _) in succ.items()}
+
+    def rings(self) -> list[list[Vertex]]:
+        """The sender's rings as this robot knows them (see the module's rules)."""
+        alive = {v: r for v, r in self._vertices.items() if self._alive(r)}
+        succ = self._claims(alive)
         rings = []
         done: set[int] = set()
         for start in sorted(alive):
@@ -119,7 +129,7 @@ class Replica:
             while v in alive and v not in done and v not in on_path:
                 on_path[v] = len(path)
                 path.append(v)
-                v = succ.get(v, (0, 0))[0]
+                v = succ.get(v, 0)
             if v in on_path:                       # closed a new cycle
                 cycle = path[on_path[v]:]
                 k = cycle.index(min(cycle))

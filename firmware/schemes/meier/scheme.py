@@ -47,8 +47,8 @@ PRIORITY_SPLIT = PRIORITY_INFO
 PRIORITY_REFRESH = 0
 # Records of the slow refresh round robin, per second, sent only while nothing else waits.
 REFRESH_RECORDS_PER_S = 0.5
-# A record handed to the link is on the air and read by the receivers within this long.
-NEWS_ON_AIR_S = 1.0
+# A frame that left the air is read by every receiver within this long (a few ticks).
+NEWS_READ_S = 0.2
 # Coarse cells around an own waypoint beyond the local window that a teammate's map must
 # show known for the waypoint to count as explored by the team.
 COVERED_RADIUS_CELLS = 1
@@ -137,7 +137,8 @@ class Meier(Scheme):
         waiting = s.queued("poly") + s.queued("poly_alive")
         self._outbox_us = now_us
         if waiting or self._outbox:
-            self._news_until_us = now_us + int(NEWS_ON_AIR_S * 1e6)
+            self._news_until_us = now_us + int(NEWS_READ_S * 1e6)
+        self._news_until_us = max(self._news_until_us, s.on_air_until_us() + int(NEWS_READ_S * 1e6))
         room = s.params.meier_backlog_max - waiting
         if room <= 0 or not self._outbox:
             return
@@ -180,8 +181,8 @@ class Meier(Scheme):
         self._finished = True
 
     def has_news(self) -> bool:
-        """Polygon records waiting, in the outbox or on the link, or sent less than
-        NEWS_ON_AIR_S ago (on the air, or not yet read by the receivers)."""
+        """Polygon records waiting, in the outbox or on the link, or on the air until less
+        than NEWS_READ_S ago (not yet read by every receiver)."""
         return self.variant == "polygons" and self._outbox_us < self._news_until_us
 
     def _rebuild_team_layer(self) -> None:
@@ -212,8 +213,9 @@ class Meier(Scheme):
             return
         shape = (r_hi - r_lo, c_hi - c_lo)
         team = np.zeros(shape, np.uint8)
+        min_hole = self.s.params.meier_min_hole_m2 / LATTICE_M ** 2
         for rings, wall in per_sender:
-            np.maximum(team, rasterise_rings(rings, wall, shape, r_lo, c_lo), out=team)
+            np.maximum(team, rasterise_rings(rings, wall, shape, r_lo, c_lo, min_hole), out=team)
         self._team = (team, r_lo, c_lo)
 
     def _team_cells(self, row0: int, col0: int, rows: int, cols: int) -> np.ndarray | None:
