@@ -3,6 +3,7 @@ as their records say, the utility discount, and the choice it makes on a hand-bu
 import numpy as np
 import pytest
 
+from firmware import kernels
 from firmware.params import ExplorationParams
 from firmware.schemes.meier.coordination import TeamTargets, coverage_probability, discount
 from firmware.services.local_map import LocalMap
@@ -72,3 +73,39 @@ def test_a_robot_leaves_the_goal_a_teammate_of_lower_id_heads_for(me):
         assert (claimed.x_m, claimed.y_m) == (alone.x_m, alone.y_m)
     else:
         assert np.hypot(claimed.x_m - alone.x_m, claimed.y_m - alone.y_m) > 3.0
+
+
+def _closed_room_with_a_door() -> LocalMap:
+    """A room x, y in [5, 15] m, seen free and walled, with a door in its east wall at
+    y in [9.2, 10.8] m; beyond the door this robot saw nothing."""
+    lm = LocalMap(P, 10.0, 10.0)
+    lm.logodds[:] = 0.0
+    paint_box(lm, 5.0, 15.0, 5.0, 15.0, P.logodds_min)
+    paint_box(lm, 4.8, 15.2, 4.8, 4.9, P.logodds_max)
+    paint_box(lm, 4.8, 15.2, 15.1, 15.2, P.logodds_max)
+    paint_box(lm, 4.8, 4.9, 4.8, 15.2, P.logodds_max)
+    paint_box(lm, 15.1, 15.2, 4.8, 9.1, P.logodds_max)
+    paint_box(lm, 15.1, 15.2, 10.9, 15.2, P.logodds_max)
+    return lm
+
+
+def test_a_frontier_only_a_teammates_polygons_show_beyond_the_window_is_in_the_whole_map():
+    """A teammate mapped a corridor from the door to x = 70 m, open at its far end (40 m
+    beyond this robot's window): the whole map a robot looks over before it stops holds it,
+    and the frontier at its end is one the robot can reach."""
+    from firmware.schemes.meier.polygons import PolygonMap
+    from firmware.schemes.meier.records import poly_values
+    from firmware.services.known_map import KnownMap
+
+    rig = PlannerRig(_closed_room_with_a_door(), "meier", robot_id=1)
+    paint_box(rig.local_map, 15.1, 15.2, 9.2, 10.8, P.logodds_min)     # the door, seen free
+    corridor = PolygonMap(sender_id=0)
+    # Lattice of 0.2 m: x 15.2 .. 70 m, y 9 .. 11 m; walls along both sides, open at the far end.
+    corridor.new_ring([(76, 45, 1), (350, 45, 0), (350, 55, 1), (76, 55, 0)])
+    for r in corridor.flush():
+        rig.scheme.on_record("poly", poly_values(r), 0)
+    state, row0, col0 = rig.local_map.whole_state()
+    assert state[100 - row0, 500 - col0] == kernels.FREE                 # (50, 10) m: the teammate saw it
+    known = KnownMap(P, rig.local_map)
+    known.refresh(10.0, 10.0, 0, force=True)
+    assert any(f.stand_xy[0] > 65.0 for f in known.frontiers().reachable)

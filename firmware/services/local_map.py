@@ -10,9 +10,8 @@ so.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
@@ -160,6 +159,18 @@ def close_wall_gaps(state: np.ndarray) -> np.ndarray:
 MAX_PASSED_CELLS = 20_000
 
 
+class TeamView(Protocol):
+    """What teammates told a robot about the places they saw (a scheme that shares maps)."""
+
+    def fill_unknown(self, state: np.ndarray, row0: int, col0: int) -> None:
+        """Fill the UNKNOWN cells of a state grid anchored at global cell (row0, col0) with
+        what teammates saw there."""
+
+    def extent(self) -> tuple[int, int, int, int] | None:
+        """The global cells (row_lo, col_lo, row_hi, col_hi), ends excluded, that teammates
+        told anything about; None if nothing."""
+
+
 class LocalMap:
     MAX_BUMP_CELLS = 7 * 64
     def __init__(self, params: ExplorationParams, x_m: float, y_m: float) -> None:
@@ -176,9 +187,9 @@ class LocalMap:
         self._passed_cells = np.zeros((0, 2), np.int64)   # self.passed as an array, for layers()
         self._fits = {tight: BodyFit(params, tight) for tight in (False, True)}
         # What teammates told this robot about places it has not observed itself, set by a
-        # scheme that shares maps: fills the UNKNOWN cells of a state grid anchored at global
-        # cell (row0, col0). Planning sees it; the log-odds (this robot's own observations) never do.
-        self.team_overlay: Callable[[np.ndarray, int, int], None] | None = None
+        # scheme that shares maps. Planning sees it; the log-odds (this robot's own
+        # observations) never do.
+        self.team: TeamView | None = None
 
     # --- geometry -------------------------------------------------------------------
     def _anchor_for(self, x_m: float, y_m: float) -> tuple[int, int]:
@@ -311,8 +322,8 @@ class LocalMap:
         p = self.p
         state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
         self._mark_bumps(state, self.row0, self.col0)
-        if self.team_overlay is not None:
-            self.team_overlay(state, self.row0, self.col0)
+        if self.team is not None:
+            self.team.fill_unknown(state, self.row0, self.col0)
         fit = self._fits[tight].update(state, self.row0, self.col0)
         traversable = fit.traversable.copy()
         self.open_passed(traversable, state, self.row0, self.col0)
@@ -331,13 +342,19 @@ class LocalMap:
         c_lo = min([self.col0] + [tj * t for _, tj in keys])
         r_hi = max([self.row0 + self.n] + [(ti + 1) * t for ti, _ in keys])
         c_hi = max([self.col0 + self.n] + [(tj + 1) * t for _, tj in keys])
+        extent = self.team.extent() if self.team is not None else None
+        if extent is not None:
+            # With room beyond it for a frontier at its edge to show what it hides.
+            pad = int(math.ceil(p.d_cam_m / p.resolution_m))
+            r_lo, c_lo = min(r_lo, extent[0] - pad), min(c_lo, extent[1] - pad)
+            r_hi, c_hi = max(r_hi, extent[2] + pad), max(c_hi, extent[3] + pad)
         logodds = np.zeros((r_hi - r_lo, c_hi - c_lo), self.logodds.dtype)
         self.pager.load(logodds, r_lo, c_lo, (0, r_hi - r_lo, 0, c_hi - c_lo))
         logodds[self.row0 - r_lo:self.row0 - r_lo + self.n, self.col0 - c_lo:self.col0 - c_lo + self.n] = self.logodds
         state = kernels.classify(logodds, p.logodds_occupied, p.logodds_free)
         self._mark_bumps(state, r_lo, c_lo)
-        if self.team_overlay is not None:
-            self.team_overlay(state, r_lo, c_lo)
+        if self.team is not None:
+            self.team.fill_unknown(state, r_lo, c_lo)
         return state, r_lo, c_lo
 
     def _mark_bumps(self, state: np.ndarray, row0: int, col0: int) -> None:

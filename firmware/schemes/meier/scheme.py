@@ -9,7 +9,7 @@ link), and the vertices it changed go out as `poly` records, the forced ones fir
 changes a slow round robin re-sends live vertices and which ids are alive, for receivers
 that lost records. Teammates' records build their polygon maps (replica.Replica, a pure
 function of the records held), rasterised into a team layer that fills the cells this robot
-has not observed itself (LocalMap.team_overlay): it plans on the combined map.
+has not observed itself (LocalMap.team): it plans on the combined map.
 
 Variant `targets`: the coordination alone (the dense baseline adds dense maps to it for the
 paper's comparison, `meier-full`).
@@ -93,7 +93,8 @@ class Meier(Scheme):
         self.replicas: dict[int, Replica] = {}
         self._team: tuple[np.ndarray, int, int] | None = None     # team layer (coarse), its row0, col0
         self._team_stale = False
-        services.local_map.team_overlay = self._overlay
+        self._drawn_us = -(1 << 62)                 # when the team layer was last drawn (outbox clock)
+        services.local_map.team = self
 
     def tasks(self) -> list[Task]:
         if self.variant != "polygons":
@@ -121,8 +122,6 @@ class Meier(Scheme):
                 self._refresh_credit -= 1.0
                 for r in self.tracker.map.refresh_next(1):
                     self._post(r, PRIORITY_REFRESH)
-        if self._team_stale:
-            self._rebuild_team_layer()
 
     def _post(self, r: PolyRecord | AliveRecord, priority: int) -> None:
         """Into the outbox; a newer state of the same vertex (or block) replaces one waiting."""
@@ -171,7 +170,8 @@ class Meier(Scheme):
         """The team layer changed since this robot last looked: a teammate's map may now
         show a way on where it stopped. It looks at most every known_map_refresh_s (a look
         is a plan over everything mapped)."""
-        if not self._team_news or now_us - self._woken_us < self.s.params.known_map_refresh_s * 1e6:
+        news = self._team_news or (self.variant == "polygons" and self._team_stale)
+        if not news or now_us - self._woken_us < self.s.params.known_map_refresh_s * 1e6:
             return False
         self._team_news, self._woken_us = False, now_us
         self._finished = False
@@ -185,9 +185,17 @@ class Meier(Scheme):
         than NEWS_READ_S ago (not yet read by every receiver)."""
         return self.variant == "polygons" and self._outbox_us < self._news_until_us
 
+    def _team_layer(self) -> tuple[np.ndarray, int, int] | None:
+        """The team layer (coarse cells, row0, col0), drawn again when it is used after
+        news, at most every meier_update_s."""
+        if self._team_stale and self._outbox_us - self._drawn_us >= self.s.params.meier_update_s * 1e6:
+            self._drawn_us = self._outbox_us
+            self._rebuild_team_layer()
+        return self._team
+
     def _rebuild_team_layer(self) -> None:
-        """The team layer: every teammate's polygons rasterised, occupied over free over
-        unknown (meier.md 1.5)."""
+        """Every teammate's polygons rasterised, occupied over free over unknown (meier.md
+        1.5)."""
         self._team_stale = False
         self._team_news = True
         per_sender = []
@@ -221,9 +229,10 @@ class Meier(Scheme):
     def _team_cells(self, row0: int, col0: int, rows: int, cols: int) -> np.ndarray | None:
         """The team layer on the fine grid of `rows` x `cols` anchored at global fine cell
         (row0, col0); None if there is none."""
-        if self._team is None:
+        drawn = self._team_layer()
+        if drawn is None:
             return None
-        team, t_r0, t_c0 = self._team
+        team, t_r0, t_c0 = drawn
         cr = (row0 + np.arange(rows)) // self._k - t_r0
         cc = (col0 + np.arange(cols)) // self._k - t_c0
         rin = (cr >= 0) & (cr < team.shape[0])
@@ -233,17 +242,26 @@ class Meier(Scheme):
             out[np.ix_(rin, cin)] = team[np.ix_(cr[rin], cc[cin])]
         return out
 
-    def _overlay(self, state: np.ndarray, row0: int, col0: int) -> None:
+    # --- the team layer as the local map sees it (services.local_map.TeamView) ----------
+    def fill_unknown(self, state: np.ndarray, row0: int, col0: int) -> None:
         team = self._team_cells(row0, col0, *state.shape)
         if team is not None:
             fill = (state == kernels.UNKNOWN) & (team != kernels.UNKNOWN)
             state[fill] = team[fill]
 
+    def extent(self) -> tuple[int, int, int, int] | None:
+        drawn = self._team_layer()
+        if drawn is None:
+            return None
+        team, r0, c0 = drawn
+        k = self._k
+        return r0 * k, c0 * k, (r0 + team.shape[0]) * k, (c0 + team.shape[1]) * k
+
     # --- coordination -----------------------------------------------------------------
     def filter_waypoints(self, view: PlanningView) -> None:
         """Own waypoints beyond the local window whose surroundings a teammate's map shows
         known are explored (inside the window the combined map re-scores them)."""
-        if self.variant != "polygons" or self._team is None:
+        if self.variant != "polygons" or self._team_layer() is None:
             return
         lm, k, r = self.s.local_map, self._k, COVERED_RADIUS_CELLS
         res = lm.p.resolution_m
@@ -318,7 +336,7 @@ class Meier(Scheme):
 
     def team_layer(self) -> tuple[np.ndarray, int, int] | None:
         """What this robot's teammates' polygons say, on the same lattice; None if nothing."""
-        return self._team if self.variant == "polygons" else None
+        return self._team_layer() if self.variant == "polygons" else None
 
     def stats(self) -> dict[str, int]:
         kinds = ("refresh", "edge_split", "vanished", "broken", "emerged")
