@@ -54,7 +54,6 @@ PRIORITY_MOTION = 2
 PRIORITY_STATUS = 3
 
 
-
 class Send(Protocol):
     def __call__(self, rtype: str, values: Mapping[str, int], priority: int, key: Hashable | None = None) -> bool:
         """Queue a record for the air: higher priority first; a queued record with the same
