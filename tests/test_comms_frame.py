@@ -15,7 +15,7 @@ from firmware.schemes.bayer_faigl.records import DIALECT as BF
 DIALECTS = all_dialects()
 # A second scheme's dialect, for peers that know more (or other) dialects than we do.
 BLIP = RecordType(1, "blip", 2, (SENDER, Field("level_id", 8)))
-OTHER = Dialect(2, "other", (BLIP,))
+OTHER = Dialect(200, "other", (BLIP,))     # an id no scheme uses
 WITH_OTHER = DialectSet([CORE, BF, OTHER])
 
 
@@ -126,10 +126,10 @@ def test_each_reason_from_a_crafted_frame():
     bad_yaw[7] = 0x7F   # yaw_cdeg high byte -> 32767
     res = decode_frame(seal(_body(payload=bytes([0x08]) + bytes(bad_yaw), dialect=0)))
     assert res.reason is Reason.OUT_OF_RANGE and "yaw_cdeg" in res.detail
-    unknown = _body(payload=bytes([0x88, 1, 2]), dialect=2)
+    unknown = _body(payload=bytes([0x88, 1, 2]), dialect=200)
     res = decode_frame(seal(unknown, WITH_OTHER))
-    assert res.reason is Reason.UNKNOWN_DIALECT and "dialect id 2" in res.detail
-    with pytest.raises(ValueError, match="unknown dialect id 2"):
+    assert res.reason is Reason.UNKNOWN_DIALECT and "dialect id 200" in res.detail
+    with pytest.raises(ValueError, match="unknown dialect id 200"):
         seal(unknown)
 
 
@@ -163,7 +163,7 @@ def test_a_peer_whose_other_dialects_differ_still_reads_the_frame():
     """Changing one scheme's table breaks only that scheme's frames."""
     ours = encode_frame(1, 5, [("pose", POSE), ("topo", TOPO)])
     peer = DialectSet([CORE, BF, OTHER])                                    # knows one dialect more
-    peer_changed = DialectSet([CORE, BF, Dialect(2, "other", (dataclasses.replace(BLIP, size_bytes=3,
+    peer_changed = DialectSet([CORE, BF, Dialect(200, "other", (dataclasses.replace(BLIP, size_bytes=3,
                                                              fields=BLIP.fields + (Field("more_id", 8),)),))])
     for dialects in (peer, peer_changed):
         res = decode_frame(ours, dialects)

@@ -344,7 +344,7 @@ def test_a_relay_larger_than_the_rate_cap_lets_out_is_dropped_and_counted():
 
 
 BLIP = RecordType(1, "blip", 2, (SENDER, Field("level_id", 8)))
-OTHER = Dialect(2, "other", (BLIP,))
+OTHER = Dialect(200, "other", (BLIP,))     # an id no scheme uses
 
 
 def test_a_link_sends_core_and_own_records_only_and_frames_of_core_records_go_as_dialect_0():

@@ -93,7 +93,7 @@ def test_arbitrary_chunks_never_raise_and_every_byte_is_accounted(chunks):
 def test_a_frame_of_an_unknown_dialect_is_stepped_over_like_garbage():
     """Its CRC cannot be checked, so it is no better than noise: the scan resyncs through
     it, and frames after it still come out."""
-    other = Dialect(2, "other", (RecordType(1, "blip", 2, (SENDER, Field("level_id", 8))),))
+    other = Dialect(200, "other", (RecordType(1, "blip", 2, (SENDER, Field("level_id", 8))),))
     theirs = encode_frame(4, 9, [("blip", dict(sender_id=4, level_id=1))],
                           dialects=DialectSet([*all_dialects(), other]))
     ours = encode_frame(1, 1, [("topo", dict(sender_id=1, x_cm=0, y_cm=0, z_cm=0, presence=0, e_inf_code=0,
