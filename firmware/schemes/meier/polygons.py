@@ -138,7 +138,8 @@ class PolygonMap:
 
     # --- records --------------------------------------------------------------------------
     def flush(self) -> list[PolyRecord]:
-        """The records of every vertex changed since the last flush: tombstones, then live."""
+        """The records that bring a receiver of every record up to date (see the module's
+        note): changed vertices (tombstones first), then links the receiver would get wrong."""
         out = []
         for v in sorted(self._dirty, key=lambda v: (self._v[v].alive, v)):
             st = self._v[v]
