@@ -11,6 +11,7 @@ from firmware.services.local_map import LocalMap
 from firmware.services.targets import Target
 from firmware.services.waypoints import Waypoint
 from tests.doubles import PlannerRig
+from tests.doubles import paint_box as paint
 
 P = ExplorationParams()
 # The pocket below holds less than the breaker's revive_min_bit: these tests lower it.
@@ -18,13 +19,6 @@ BREAKING = dataclasses.replace(P, revive_min_bit=P.presence_keep_bit)
 HOLDING = dataclasses.replace(P, presence_holds_target=True)
 SEEING = dataclasses.replace(P, target_seen_within_m=1.5)
 ME, OTHER = 0, 1
-
-
-def paint(local_map: LocalMap, x0: float, x1: float, y0: float, y1: float, logodds: float) -> None:
-    """Set the log-odds of the cells from (x0, y0) to (x1, y1) m, both corners included."""
-    i0, j0 = local_map.cell_of(x0, y0)
-    i1, j1 = local_map.cell_of(x1, y1)
-    local_map.logodds[i0:i1 + 1, j0:j1 + 1] = logodds
 
 
 def _explorer(door: bool = True, params: ExplorationParams = P) -> PlannerRig:

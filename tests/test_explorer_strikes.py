@@ -11,7 +11,7 @@ from firmware.services.grid_paths import escape_start, nearest_traversable
 from firmware.services.waypoints import Waypoint
 from tests.doubles import PlannerRig
 from tests.test_explorer_presence import _explorer as corridor
-from tests.test_explorer_presence import paint
+from tests.doubles import paint_box as paint
 
 P = ExplorationParams()
 ROBOT_XY = (10.0, 20.0)

@@ -31,6 +31,7 @@ from firmware.comms.schema import Dialect
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Task
 from firmware.services.local_map import BinnedScan, LocalMap
+from firmware.services.pose import TravelMilestones
 from firmware.services.roster import Roster
 from firmware.services.targets import Candidate, Target
 from firmware.services.topo_map import TopoMap
@@ -191,3 +192,19 @@ def cost_along_graph(view: PlanningView, candidates: list[Candidate]) -> None:
     """Each candidate's cost beyond the local window: along the topological graph."""
     for c, cost in zip(candidates, view.graph_costs(candidates)):
         c.graph_cost_m = float(cost)
+
+
+class OwnPlaces:
+    """This robot's own places, a topological vertex every d_build of travel, kept to route
+    beyond the local window and never sent: for schemes that share no topological map."""
+
+    def __init__(self, services: Services) -> None:
+        self.s = services
+        self._milestones = TravelMilestones(services.params.d_build_m)
+
+    def on_travel(self, pose: OdometrySample) -> None:
+        if not self._milestones.due(pose.x_m, pose.y_m) or not self.s.has_planned():
+            return
+        # A place of its own (presence, no information): only its position is ever read.
+        self.s.topo.add((self.s.robot_id, round(pose.x_m * 100), round(pose.y_m * 100), 0, 1, 0, 0))
+        self._milestones.mark(pose.x_m, pose.y_m)

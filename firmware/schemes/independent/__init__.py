@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware.schemes.base import Candidate, PlanningView, Scheme, Services, cost_along_graph
-from firmware.services.pose import TravelMilestones
+from firmware.schemes.base import Candidate, OwnPlaces, PlanningView, Scheme, Services, cost_along_graph
 from hal.samples import OdometrySample
 
 
@@ -18,14 +17,10 @@ class Independent(Scheme):
 
     def attach(self, services: Services) -> None:
         super().attach(services)
-        self._milestones = TravelMilestones(services.params.d_build_m)
+        self._places = OwnPlaces(services)
 
     def on_travel(self, pose: OdometrySample, now_us: int) -> None:
-        if not self._milestones.due(pose.x_m, pose.y_m) or not self.s.has_planned():
-            return
-        # A place of its own (presence, no information): only its position is ever read.
-        self.s.topo.add((self.s.robot_id, round(pose.x_m * 100), round(pose.y_m * 100), 0, 1, 0, 0))
-        self._milestones.mark(pose.x_m, pose.y_m)
+        self._places.on_travel(pose)
 
     def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
         cost_along_graph(view, own)

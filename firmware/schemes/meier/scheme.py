@@ -28,8 +28,8 @@ import numpy as np
 
 from firmware import kernels
 from firmware.scheduler import Task
-from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, PRIORITY_STATUS, Candidate, PlanningView, Scheme,
-                                   Services, cost_along_graph)
+from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, PRIORITY_STATUS, Candidate, OwnPlaces, PlanningView,
+                                   Scheme, Services, cost_along_graph)
 from firmware.schemes.meier.coordination import TARGET_SEQ_MOD, TeamTargets, discount
 from firmware.schemes.meier.polygons import EDGE_SPLIT
 from firmware.schemes.meier.raster import CoarseRaster, rasterise_rings
@@ -37,7 +37,6 @@ from firmware.schemes.meier.records import (DIALECT, LATTICE_M, alive_record, al
                                             poly_values)
 from firmware.schemes.meier.replica import AliveRecord, PolyRecord, Replica
 from firmware.schemes.meier.tracker import PolygonTracker
-from firmware.services.pose import TravelMilestones
 from hal.samples import OdometrySample
 
 # Link priorities of polygon records: what the map forces (a vertex gone, a ring broken or
@@ -66,7 +65,7 @@ class Meier(Scheme):
     def attach(self, services: Services) -> None:
         super().attach(services)
         p = services.params
-        self._milestones = TravelMilestones(p.d_build_m)
+        self._places = OwnPlaces(services)
         self.team_targets = TeamTargets(p.meier_target_expiry_s)
         self._target_seq = 0
         self._said: tuple[float, float] | None = None      # the target last claimed on the air
@@ -308,11 +307,7 @@ class Meier(Scheme):
         self.counts["target_records_sent"] += 1
 
     def on_travel(self, pose: OdometrySample, now_us: int) -> None:
-        """A place of its own every d_build of travel, to route beyond the window (never sent)."""
-        if not self._milestones.due(pose.x_m, pose.y_m) or not self.s.has_planned():
-            return
-        self.s.topo.add((self.s.robot_id, round(pose.x_m * 100), round(pose.y_m * 100), 0, 1, 0, 0))
-        self._milestones.mark(pose.x_m, pose.y_m)
+        self._places.on_travel(pose)
 
     # --- for the host -----------------------------------------------------------------
     def polygons(self) -> list[list[tuple[int, int, int, int]]]:
