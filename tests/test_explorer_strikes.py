@@ -92,3 +92,37 @@ def _reference_escape_start(t: np.ndarray, i: int, j: int, r: int):
 def test_escape_start_equals_a_plain_reference_on_generated_grids(seed, density, i, j, r):
     t = np.random.default_rng(seed).random((24, 24)) < density
     assert escape_start(t, i, j, r) == _reference_escape_start(t, i, j, r)
+
+
+# --- targets the topological graph cannot bring within reach ---------------------------------
+
+def _own_place(ex: PlannerRig, x_m: float, y_m: float) -> None:
+    ex.topo.add((0, round(x_m * 100), round(y_m * 100), 0, 1, 0, 0))
+
+
+def test_targets_behind_a_wall_next_to_the_robots_own_places_are_dropped_not_taken_in_turns():
+    # Two waypoints just beyond the wall, each nearest to a different place of the robot's own
+    # on this side. The graph costs each as a place plus a straight line through the wall;
+    # following it leads to that place and no further, so a robot taking the two in turn
+    # drove between the two places for ever. Neither is a way on: both must be dropped.
+    ex = _explorer(wall_across_at_x_m=25.0)
+    a_xy, b_xy = (30.0, 19.5), (30.0, 20.5)
+    ex.waypoints.items = [Waypoint(*a_xy, 5000.0), Waypoint(*b_xy, 5000.0)]
+    for x_m in range(10, 24, 2):
+        _own_place(ex, float(x_m), 20.0)
+    _own_place(ex, 24.0, 19.3)                 # the nearest place to a
+    _own_place(ex, 24.0, 20.7)                 # the nearest place to b
+    x_m, y_m = 24.0, 19.3
+    done = False
+    for period in range(20):
+        plan = ex.plan(x_m, y_m, period * SECOND_US)
+        if plan.recover:
+            ex.targets.recovery_started()
+        elif len(plan.path_xy):
+            x_m, y_m = plan.path_xy[-1]          # the robot drives the whole path in a period
+        if plan.done:
+            done = True
+            break
+    assert done, "the robot still heads for waypoints the grid says it cannot reach"
+    assert ex.stat("targets_unreachable") >= 1   # dropping one bans the other, 1 m away
+    assert not {a_xy, b_xy} & {(w.x_m, w.y_m) for w in ex.waypoints.items}

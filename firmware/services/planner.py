@@ -24,12 +24,14 @@ import numpy as np
 from firmware import kernels
 from firmware.params import ExplorationParams
 from firmware.schemes.base import PlanningView, Scheme
-from firmware.services.grid_paths import GridPaths, cell_known, escape_start, nearest_traversable
+from firmware.services.grid_paths import GridPaths, cell_known, escape_start, lines_of_sight, nearest_traversable
 from firmware.services.known_map import Frontier, KnownMap, find_frontiers
 from firmware.services.local_map import LocalMap
 from firmware.services.targets import Candidate, Target, TargetKeeper
 from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
+
+PLACE_SNAP_CELLS = 3    # a topological place counts as reachable with a reachable cell this near
 
 
 @dataclass
@@ -121,7 +123,7 @@ class Planner:
             settle_choice_costs(candidates, paths, self.targets.target, self.p.resolution_m)
             c = self.targets.choose(candidates)
             key = (c.x_m, c.y_m)
-            cells = self._route(c, paths, topo_src, topo_dist, topo_parent, x_m, y_m)
+            cells = self._route(c, paths, layers.state, topo_src, topo_dist, topo_parent, x_m, y_m)
             if cells is None and key in through_known:
                 cells = through_known[key]
             elif cells is None:
@@ -223,13 +225,14 @@ class Planner:
                             graph_costs)
 
     # --- routes -----------------------------------------------------------------------
-    def _route(self, c: Candidate, paths: GridPaths, topo_src, topo_dist, topo_parent,
+    def _route(self, c: Candidate, paths: GridPaths, state: np.ndarray, topo_src, topo_dist, topo_parent,
                x_m: float, y_m: float) -> list[tuple[int, int]] | None:
         """The cells of a local path to the target, or to the farthest vertex on the
         topological route towards it that the local map can reach."""
         reachable = paths.reachable
         wi, wj = self.map.cell_of(c.x_m, c.y_m)
-        if self._in_window(wi, wj) and reachable[wi, wj]:
+        in_window = self._in_window(wi, wj)
+        if in_window and reachable[wi, wj]:
             return paths.path(wi, wj)
         if topo_src is None:
             return None
@@ -237,13 +240,19 @@ class Planner:
         if goal_vertex is None:
             return None
         xy = self.topo.positions()
+        if in_window and self._walled_off(xy[goal_vertex], (wi, wj), reachable, state):
+            # The graph ends at a place the robot can drive to, short of c, and finishes with
+            # a straight line through a wall: following it leads to that place and no
+            # further. Only a way out of the window and back can help (the caller's route
+            # through everything mapped), or none does.
+            return None
         route = self.topo.path(topo_parent, goal_vertex)
         best = None
         for k, v in enumerate(route):
             vi, vj = self.map.cell_of(xy[v, 0], xy[v, 1])
             if not self._in_window(vi, vj):
                 continue
-            hit = nearest_traversable(reachable, vi, vj, 3)
+            hit = nearest_traversable(reachable, vi, vj, PLACE_SNAP_CELLS)
             if hit is not None:
                 best = (v, hit)
             elif k > 0 and best is not None and best[0] == route[k - 1] and cell_known(self.map, vi, vj):
@@ -255,6 +264,18 @@ class Planner:
             return None  # the only reachable place on the way is where we stand: no progress
         return paths.path(best[1][0], best[1][1])
 
+
+    def _walled_off(self, place_xy_m: np.ndarray, goal: tuple[int, int], reachable: np.ndarray,
+                    state: np.ndarray) -> bool:
+        """Is the place in the window, with a grid-reachable cell near it, farther than a
+        target is reached from the goal cell, and with a known wall on the straight line
+        between them? (Unknown cells on the line are no reason: driving there may open it.)"""
+        vi, vj = self.map.cell_of(float(place_xy_m[0]), float(place_xy_m[1]))
+        if not self._in_window(vi, vj) or nearest_traversable(reachable, vi, vj, PLACE_SNAP_CELLS) is None:
+            return False
+        if math.hypot(vi - goal[0], vj - goal[1]) * self.p.resolution_m <= self.p.waypoint_reached_m:
+            return False
+        return not lines_of_sight(state, [vi], [vj], [goal[0]], [goal[1]])[0]
 
     def _route_through_known(self, c: Candidate, paths: GridPaths, x_m: float, y_m: float,
                              now_us: int) -> list[tuple[int, int]] | None:
