@@ -197,6 +197,13 @@ class ExplorerAgent:
         pose = self.pose.read()
         # The pose when the scan was taken, not now: a LiDAR's scans arrive on its own clock.
         x_m, y_m, yaw_rad = self.pose.pose_at(scan.stamp_us)
+        held_at = self.stall.on_scan(x_m, y_m, yaw_rad, scan.angle_min_rad, scan.angle_increment_rad,
+                                     scan.ranges_m, scan.range_max_m)
+        if held_at is not None:
+            # The wheels slipped: the body is behind where odometry puts it.
+            x_m, y_m = held_at
+            self.pose.correct_at(scan.stamp_us, x_m, y_m, yaw_rad)
+            pose = self.pose.read()
         self.local_map.follow(pose.x_m, pose.y_m)
         if self.localiser.due(x_m, y_m, yaw_rad):
             found = self.localiser.match(self.local_map, x_m, y_m, yaw_rad, scan.angle_min_rad,

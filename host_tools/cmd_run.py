@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import signal
 import sys
 import threading
@@ -11,6 +12,7 @@ from host_tools.options import FRAMES, JSON, MAP, MAX_SIM_S, QUIET, RADIO, ROBOT
 from host_tools.overrides import combine_overrides, describe, params_help, params_with
 from host_tools.progress import progress_bar
 from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, strict_dumps, write_text
+from world_sim.world import WorldParams
 
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as a shell reports a command Ctrl-C ended
 
@@ -25,6 +27,11 @@ OPTIONS = (
     Opt("--start", "pose", "start pose in metres (and degrees; default the map's yaw): once, the centre of the "
         "team's staging area (default: the map's start); once per robot, each robot's own start",
         repeat=True, metavar="X,Y[,YAW_DEG]"),
+    Opt("--wheel-slip", "float", "share of the commanded wheel travel the encoders report while a wall holds the "
+        "body back: 0, the wheels stop with it; 1, they spin on and odometry runs on as if the robot drove",
+        lo=0.0, hi=1.0, default=0.0, metavar="FRAC"),
+    Opt("--lidar-phase-ms", "float", "the LiDAR's first scan this long after the start, then one every 100 ms: "
+        "scans arrive between the firmware's 50 ms ticks", unit="ms", lo=0.0, hi=99.999, default=0.0, metavar="MS"),
     SET, JSON,
     Opt("--out", "out_dir", "write mission.png and mission.json here (each replaced only by a complete new one)",
         metavar="DIR"),
@@ -49,6 +56,8 @@ def main(args: argparse.Namespace) -> int:
     except (ValueError, OutputPathError) as exc:
         print(f"lorascout run: {exc}", file=sys.stderr)
         return 2
+    world_params = dataclasses.replace(WorldParams(), wheel_slip_frac=args.wheel_slip,
+                                       lidar_phase_us=round(args.lidar_phase_ms * 1000))
     cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
                         max_sim_s=args.max_sim_s, radio=args.radio, starts=tuple(args.start),
                         strategy=args.strategy, frames=args.frames, serial_radio=args.serial_radio,
@@ -71,7 +80,8 @@ def main(args: argparse.Namespace) -> int:
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, on_sigint) if in_main_thread else None
     try:
-        result = run_mission(cfg, progress, params=params_with(overrides), should_stop=lambda: state["stop"])
+        result = run_mission(cfg, progress, params=params_with(overrides), world_params=world_params,
+                             should_stop=lambda: state["stop"])
     except (ValueError, KeyError, OSError) as exc:
         bar.close()
         print(f"lorascout run: {exc}", file=sys.stderr)
@@ -82,6 +92,7 @@ def main(args: argparse.Namespace) -> int:
     bar.close()
     report = result.to_json()
     report["params_overrides"] = dict(overrides)
+    report["world"] = {"wheel_slip_frac": world_params.wheel_slip_frac, "lidar_phase_us": world_params.lidar_phase_us}
     interrupted = result.termination == "interrupted"
     # The report is printed before the files are written: if writing fails, it is not lost.
     if args.json:

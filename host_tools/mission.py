@@ -76,6 +76,7 @@ class MissionResult:
     ticks: int
     robots_in_wall: int
     blocked_moves: list[int]
+    longest_push_s: list[float]
     trajectory_sha256: str
     reachable_area_m2: float
     robot_status: list[str]
@@ -137,6 +138,7 @@ class MissionResult:
             "pose_error_m": [round(e, 3) for e in self.pose_error_m],
             "pose_error_max_m": [round(e, 3) for e in self.pose_error_max_m],
             "blocked_moves": self.blocked_moves,
+            "longest_push_s": self.longest_push_s,
             "ticks": self.ticks,
             "trajectory_sha256": self.trajectory_sha256,
             "air_log_sha256": self.air_log_sha256,
@@ -430,6 +432,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         ticks=ticks,
         robots_in_wall=in_wall,
         blocked_moves=[int(world.blocked_moves(i)) for i in range(cfg.robots)],
+        longest_push_s=[round(world.longest_push_s(i), 3) for i in range(cfg.robots)],
         trajectory_sha256=digest.hexdigest(),
         reachable_area_m2=reachable_cells * occ.resolution_m ** 2,
         robot_status=[a.status for a in agents],

@@ -193,6 +193,37 @@ def test_path_length_and_blocked_moves():
     assert odo.v_mps == 0.0 and odo.stamp_us == world.now_us  # pushing a wall: no motion
 
 
+@pytest.mark.parametrize("slip", [0.0, 0.5, 1.0])
+def test_slipping_wheels_count_travel_the_body_does_not_make(slip):
+    world = World(room(10.0, 4.0), [(8.0, 2.0, 0.0)], seed=2, params=dataclasses.replace(QUIET, wheel_slip_frac=slip))
+    SimDriveBase(world, 0).command(0.8, 0.0)
+    run(world, 5.0)                     # at the east wall after about 2 s, then 3 s pushing it
+    true_x, odo = world.true_pose(0).x_m, SimOdometry(world, 0).read()
+    assert 9.6 < true_x < 9.65
+    assert odo.x_m - true_x == pytest.approx(slip * 0.8 * (5.0 - (true_x - 8.0) / 0.8), abs=0.1)
+    assert odo.v_mps == pytest.approx(slip * 0.8, rel=0.05, abs=1e-9)
+    assert world.path_length_m(0) == pytest.approx(true_x - 8.0)
+
+
+def test_the_lidar_runs_on_its_own_clock_with_a_phase():
+    params = dataclasses.replace(QUIET, lidar_rate_hz=10.0, lidar_phase_us=37_000)
+    world = World(room(10.0, 4.0), [(2.0, 2.0, 0.0)], seed=2, params=params)
+    lidar = SimLidar(world, 0)
+    assert lidar.latest_scan() is None
+    stamps = []
+    for _ in range(10):
+        world.step(50_000)
+        scan = lidar.latest_scan()
+        if scan is not None:
+            stamps.append(scan.stamp_us)
+    assert stamps == [37_000 + 100_000 * k for k in range(5)]
+    for bad in (100_000, -1, 1.5):
+        with pytest.raises(ValueError, match="lidar_phase_us"):
+            dataclasses.replace(params, lidar_phase_us=bad)
+    with pytest.raises(ValueError, match="wheel_slip_frac"):
+        dataclasses.replace(params, wheel_slip_frac=1.5)
+
+
 def test_odometry_starts_true_and_reports_speed():
     world = World(room(30.0, 30.0), [(5.0, 5.0, 0.5)], seed=4, params=QUIET)
     odo = SimOdometry(world, 0)

@@ -163,7 +163,7 @@ def test_optional_peripherals_left_out_are_null_and_the_clock_monotonic(tmp_path
     assert {p.kind: p.backend for p in cfg.peripherals} == {
         "clock": "monotonic", "lidar": "sim", "odometry": "sim", "drive": "sim", "radio": "null", "uwb": "null",
         "aoa": "null", "mesh": "null"}
-    assert cfg.world == {"map": "cave:1:20x20", "seed": 0}
+    assert cfg.world == {"map": "cave:1:20x20", "seed": 0, "wheel_slip_frac": 0.0, "lidar_phase_ms": 0.0}
     odometry = next(p for p in cfg.peripherals if p.kind == "odometry")
     assert odometry.settings == {"frame": "shared"}            # the default, filled in
 

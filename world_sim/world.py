@@ -39,6 +39,9 @@ class WorldParams:
     lidar_range_m: float = 10.0
     lidar_noise_std_m: float = 0.01      # Gaussian, on beams that hit something
     lidar_rate_hz: float = 10.0
+    # The LiDAR's first scan comes this long after the start, then one every period: with a
+    # phase or a rate that is no multiple of the firmware's tick, scans arrive between ticks.
+    lidar_phase_us: int = 0
     # Odometry drift is a random walk whose variance grows linearly with the motion:
     # position error std = odom_trans_noise_per_m * sqrt(metres travelled) per axis,
     # yaw error std = sqrt(odom_yaw_noise_per_rad^2 * |rad turned| + odom_yaw_drift_per_m^2 * metres).
@@ -47,6 +50,10 @@ class WorldParams:
     odom_yaw_noise_per_rad: float = 0.001
     odom_yaw_drift_per_m: float = 0.0002
     odom_speed_noise_frac: float = 0.01  # relative std of the reported v and omega (encoder scale)
+    # Wheel slip: the share of the commanded wheel travel the encoders report while a wall holds
+    # the body back (0: the wheels stop with the body; 1: they spin at the commanded speed, and
+    # odometry runs on as if the robot drove).
+    wheel_slip_frac: float = 0.0
     uwb_noise_std_m: float = 0.05
     # NLOS: when the straight path between two robots crosses any wall, the first path
     # arrives late: a fixed uwb_nlos_bias_m plus uwb_nlos_bias_per_wall_m per metre of wall
@@ -74,8 +81,12 @@ class WorldParams:
                 raise ValueError(f"WorldParams.{name} must be > 0, got {getattr(self, name)!r}")
         if not isinstance(self.lidar_beams, int) or self.lidar_beams < 1:
             raise ValueError(f"WorldParams.lidar_beams must be a positive integer, got {self.lidar_beams!r}")
-        if self.aoa_outlier_prob > 1:
-            raise ValueError(f"WorldParams.aoa_outlier_prob must be in [0, 1], got {self.aoa_outlier_prob!r}")
+        for name in ("aoa_outlier_prob", "wheel_slip_frac"):
+            if getattr(self, name) > 1:
+                raise ValueError(f"WorldParams.{name} must be in [0, 1], got {getattr(self, name)!r}")
+        if not isinstance(self.lidar_phase_us, int) or self.lidar_phase_us >= round(1e6 / self.lidar_rate_hz):
+            raise ValueError(f"WorldParams.lidar_phase_us must be a whole number of microseconds below the LiDAR's "
+                             f"period ({round(1e6 / self.lidar_rate_hz)} us), got {self.lidar_phase_us!r}")
         for name in ("lidar_rate_hz", "uwb_rate_hz", "aoa_rate_hz"):
             if round(1e6 / getattr(self, name)) < 1:
                 raise ValueError(f"WorldParams.{name} = {getattr(self, name)!r} is faster than 1 MHz")
@@ -139,6 +150,8 @@ class World:
         self._cmd = np.zeros((n, 2), dtype=np.float64)
         self._path_m = np.zeros(n, dtype=np.float64)
         self._blocked = np.zeros(n, dtype=np.int64)
+        self._push_us = np.zeros(n, dtype=np.int64)          # the current run of blocked steps
+        self._longest_push_us = np.zeros(n, dtype=np.int64)
         self._observed = np.zeros((n, occ.rows, occ.cols), dtype=bool)
         self._odom = poses.copy()
         self._odom_vel = np.zeros((n, 2), dtype=np.float64)
@@ -153,10 +166,13 @@ class World:
         p = params
         self._beam_angles = p.lidar_angle_min_rad + np.arange(p.lidar_beams) * p.lidar_angle_increment_rad
         self._periods = (p.lidar_period_us, p.uwb_period_us, p.aoa_period_us)
-        self._fire_lidar()
+        if p.lidar_phase_us == 0:
+            self._fire_lidar()
         self._fire_uwb()
         self._fire_aoa()
         self._next_us = list(self._periods)
+        if p.lidar_phase_us:
+            self._next_us[0] = p.lidar_phase_us
 
     # --- control ------------------------------------------------------------------------
 
@@ -209,6 +225,8 @@ class World:
             if t == t_end:
                 break
         self._blocked += blocked
+        self._push_us = np.where(blocked, self._push_us + dt_us, 0)
+        np.maximum(self._longest_push_us, self._push_us, out=self._longest_push_us)
         dt_s = dt_us * 1e-6
         frac = self.params.odom_speed_noise_frac
         for i in range(n):
@@ -237,15 +255,18 @@ class World:
             ds = travelled_m[i]
             v, w = self._cmd[i]
             dth = w * dt_s
-            travelled_signed[i] += math.copysign(ds, v)
-            turned[i] += dth
-            if ds == 0.0 and dth == 0.0:
-                continue
             # Dead reckoning: the true body-frame displacement, integrated on the drifting
-            # estimate, plus a random walk driven by how far and how much the robot moved.
+            # estimate, plus a random walk driven by how far and how much the robot moved;
+            # held back by a wall, slipping wheels add travel the body did not make.
+            slip_m = p.wheel_slip_frac * max(abs(v) * dt_s - ds, 0.0) if blocked[i] else 0.0
+            travelled_signed[i] += math.copysign(ds + slip_m, v)
+            turned[i] += dth
+            if ds == 0.0 and dth == 0.0 and slip_m == 0.0:
+                continue
             ca, sa = math.cos(th0), math.sin(th0)
-            bx = ca * (x1 - x0) + sa * (y1 - y0)
+            bx = ca * (x1 - x0) + sa * (y1 - y0) + math.copysign(slip_m, v)
             by = -sa * (x1 - x0) + ca * (y1 - y0)
+            ds += slip_m
             z = self._rng_odom[i].standard_normal(3)
             pos_std = p.odom_trans_noise_per_m * math.sqrt(ds)
             yaw_std = math.sqrt(p.odom_yaw_noise_per_rad ** 2 * abs(dth) + p.odom_yaw_drift_per_m ** 2 * ds)
@@ -361,6 +382,11 @@ class World:
     def blocked_moves(self, i: int) -> int:
         """Steps in which a wall cut robot i's commanded translation short."""
         return int(self._blocked[self._check_index(i)])
+
+    def longest_push_s(self, i: int) -> float:
+        """The longest run of steps in which a wall cut robot i's commanded translation short:
+        how long it kept pushing a wall."""
+        return int(self._longest_push_us[self._check_index(i)]) * 1e-6
 
     def observed(self, i: int) -> np.ndarray:
         """Read-only view of the cells robot i's LiDAR has covered (bool, map shape)."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from firmware.params import ExplorationParams
 
@@ -97,21 +98,46 @@ class PathFollower:
         return self.path_xy[self._next:]
 
 
+# The slip check lays each scan over an earlier one, with the robot moved by a share of the
+# travel odometry counted in between (0, 0.1, ..., 1), and takes the share that fits best:
+# far below all of it, and fitting clearly better than all of it, the wheels slipped. Each
+# beam's misfit is its distance to the surface through the nearest point of the earlier scan
+# (point to line, as point-to-plane ICP: point to point, the beams' own spacing along a wall
+# favours no motion), at most SLIP_MISFIT_CAP_M (a beam that sees what the other scan could
+# not see counts no more than that); hits with no surface through them (beams grazing a wall
+# far apart, edges) do not count.
+SLIP_SHARES = np.linspace(0.0, 1.0, 11)
+SLIP_MAX_TURN_RAD = 0.1          # scans farther apart in heading start the check over
+SLIP_MIN_BEAMS = 30
+SLIP_MISFIT_CAP_M = 0.2
+SLIP_SURFACE_GAP_M = 0.3         # neighbouring hits farther apart are no surface
+SLIP_SEEN_SHARE = 0.5            # slipping: the best share is at most this ...
+SLIP_CLEAR_FIT = 0.7             # ... and its mean misfit at most this much of the full travel's
+
+
 class StallDetector:
-    """Commanded forward for stuck_after_s while the wheels report no motion: something
-    the map does not show is in the way."""
+    """Driving but not moving: something the map does not show is in the way. Told two ways,
+    from what a robot has: commanded forward for stuck_after_s while the wheels report no
+    motion (they stopped with the body), or odometry counting slip_check_m of forward travel
+    that the LiDAR does not see (the wheels spin while the body is held)."""
 
     def __init__(self, params: ExplorationParams, control_hz: float) -> None:
         self.p = params
         self.control_hz = control_hz
         self._stuck_ticks = 0
         self._last_cmd_v = 0.0
+        self._reference: tuple[float, float, float, np.ndarray] | None = None   # x, y, yaw, scan points
+        self._slipped = False
 
     def commanded(self, v_mps: float) -> None:
         self._last_cmd_v = v_mps
 
     def stuck(self, measured_v_mps: float) -> bool:
         """Called once per control tick; True once per stall."""
+        if self._slipped:
+            self._slipped = False
+            self._stuck_ticks = 0
+            return True
         if self.p.stuck_after_s <= 0:
             return False
         if self._last_cmd_v > 0.05 and abs(measured_v_mps) < 0.02:
@@ -122,3 +148,87 @@ class StallDetector:
             self._stuck_ticks = 0
             return True
         return False
+
+    def on_scan(self, x_m: float, y_m: float, yaw_rad: float, angle_min_rad: float, angle_increment_rad: float,
+                ranges_m: np.ndarray, range_max_m: float) -> tuple[float, float] | None:
+        """Called with each scan and the pose odometry gives for its time. When the wheels
+        slipped (odometry counted travel since an earlier scan that the scans do not show):
+        where the scans put the robot, (x_m, y_m), and the next stuck() says so; else None."""
+        if self.p.slip_check_m <= 0 or self._last_cmd_v <= 0.05:
+            self._reference = None
+            return None
+        points = scan_points(angle_min_rad, angle_increment_rad, ranges_m, range_max_m)
+        ref = self._reference
+        if ref is None or abs(_wrap(yaw_rad - ref[2])) > SLIP_MAX_TURN_RAD:
+            self._reference = (x_m, y_m, yaw_rad, points)
+            return None
+        if math.hypot(x_m - ref[0], y_m - ref[1]) < self.p.slip_check_m:
+            return None
+        self._reference = (x_m, y_m, yaw_rad, points)
+        if len(points) < SLIP_MIN_BEAMS or len(ref[3]) < SLIP_MIN_BEAMS:
+            return None
+        share = travel_share_seen(ref[3], points, x_m - ref[0], y_m - ref[1], ref[2], yaw_rad)
+        if share is None or share > SLIP_SEEN_SHARE:
+            return None
+        self._slipped = True
+        x_m, y_m = ref[0] + share * (x_m - ref[0]), ref[1] + share * (y_m - ref[1])
+        self._reference = (x_m, y_m, yaw_rad, points)
+        return x_m, y_m
+
+
+def scan_points(angle_min_rad: float, angle_increment_rad: float, ranges_m: np.ndarray,
+                range_max_m: float) -> np.ndarray:
+    """The scan's hits as (n, 2) points in the robot's frame."""
+    ranges_m = np.asarray(ranges_m, np.float64)
+    angles = angle_min_rad + np.arange(len(ranges_m)) * angle_increment_rad
+    hit = np.isfinite(ranges_m) & (ranges_m > 0.0) & (ranges_m < range_max_m)
+    return np.column_stack((ranges_m[hit] * np.cos(angles[hit]), ranges_m[hit] * np.sin(angles[hit])))
+
+
+def travel_share_seen(ref_points: np.ndarray, points: np.ndarray, dx_m: float, dy_m: float,
+                      ref_yaw_rad: float, yaw_rad: float) -> float | None:
+    """The share of odometry's travel (dx, dy in the world frame, between the scans) that
+    best lays `points` over `ref_points` (each in its robot's frame); None unless that share
+    fits clearly better than the whole travel (SLIP_CLEAR_FIT), e.g. in a corridor without
+    features, where every share fits alike."""
+    c, s = math.cos(ref_yaw_rad), math.sin(ref_yaw_rad)
+    travel = np.array([c * dx_m + s * dy_m, -s * dx_m + c * dy_m])       # in the earlier frame
+    turn = _wrap(yaw_rad - ref_yaw_rad)
+    ct, st = math.cos(turn), math.sin(turn)
+    turned = points @ np.array([[ct, st], [-st, ct]])                    # rotated into it
+    tree = cKDTree(ref_points)
+    normals = surface_normals(ref_points)
+    misfit = np.empty(len(SLIP_SHARES))
+    for k, share in enumerate(SLIP_SHARES):
+        moved = turned + share * travel
+        gap_m, nearest = tree.query(moved)
+        along_normal_m = np.abs(np.einsum("ij,ij->i", moved - ref_points[nearest], normals[nearest]))
+        on_surface = ~np.isnan(along_normal_m)
+        if np.count_nonzero(on_surface) < SLIP_MIN_BEAMS:
+            return None
+        misfit[k] = np.minimum(along_normal_m[on_surface], SLIP_MISFIT_CAP_M).mean()
+    best = int(np.argmin(misfit))
+    if misfit[best] > SLIP_CLEAR_FIT * misfit[-1]:
+        return None
+    return float(SLIP_SHARES[best])
+
+
+def surface_normals(points: np.ndarray) -> np.ndarray:
+    """Unit normals of the surface through each hit, from its neighbours in the scan (NaN
+    where a neighbour is missing or farther than SLIP_SURFACE_GAP_M)."""
+    normals = np.full(points.shape, np.nan)
+    if len(points) < 3:
+        return normals
+    before, after = points[:-2], points[2:]
+    near = (np.hypot(*(points[1:-1] - before).T) < SLIP_SURFACE_GAP_M) & \
+        (np.hypot(*(after - points[1:-1]).T) < SLIP_SURFACE_GAP_M)
+    tangent = after - before
+    length = np.hypot(tangent[:, 0], tangent[:, 1])
+    ok = near & (length > 0.0)
+    normals[1:-1][ok] = np.column_stack((-tangent[ok, 1], tangent[ok, 0])) / length[ok, None]
+    return normals
+
+
+def _wrap(a_rad):
+    """Angles (a float or an array) into [-pi, pi)."""
+    return (a_rad + math.pi) % (2 * math.pi) - math.pi

@@ -13,6 +13,7 @@ only this robot's frames: the team's other robots are other processes.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any, Mapping
 
@@ -42,6 +43,10 @@ WORLD_SETTINGS = (
     Setting("start_y_m", "float", "start position (with start_x_m)", unit="m", default=None, lo=-1e6, hi=1e6),
     Setting("start_yaw_deg", "float", "start heading (default: the map's)", unit="deg", default=None,
             lo=-360.0, hi=360.0),
+    Setting("wheel_slip_frac", "float", "share of the commanded wheel travel the encoders report while a wall holds "
+            "the body back (0: the wheels stop with it; 1: they spin on)", default=0.0, lo=0.0, hi=1.0),
+    Setting("lidar_phase_ms", "float", "the LiDAR's first scan this long after the start, then one every 100 ms",
+            unit="ms", default=0.0, lo=0.0, hi=99.999),
 )
 
 
@@ -77,7 +82,9 @@ class RealTimeWorld:
     that follows the wall clock and owns the radio channel around the robot."""
 
     def __init__(self, map: str, seed: int = 0, start_x_m: float | None = None, start_y_m: float | None = None,
-                 start_yaw_deg: float | None = None, params: WorldParams = WorldParams()) -> None:
+                 start_yaw_deg: float | None = None, wheel_slip_frac: float = 0.0, lidar_phase_ms: float = 0.0,
+                 params: WorldParams = WorldParams()) -> None:
+        params = dataclasses.replace(params, wheel_slip_frac=wheel_slip_frac, lidar_phase_us=round(lidar_phase_ms * 1000))
         occ, map_start, self.map_label = resolve_map(map)
         x, y, yaw = map_start
         if start_x_m is not None:
