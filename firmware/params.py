@@ -140,7 +140,7 @@ class ExplorationParams:
     known_map_refresh_s: float = _p(10.0, 's', 0.0, 3600.0, 'the whole map is derived again when this old')
     stuck_after_s: float = _p(0.5, 's', 0.0, 3600.0, 'driving without moving this long marks an obstacle (0: off)')
     # ... or, wheels slipping: the LiDAR does not see the travel odometry counts (motion.StallDetector).
-    slip_check_m: float = _p(0.3, 'm', 0.0, 10.0, 'odometry travel the LiDAR must see about half of (0: off)')
+    slip_check_m: float = _p(0.05, 'm', 0.0, 10.0, 'odometry travel the LiDAR must see about half of (0: off)')
     # ... or, if the LiDAR shows it, path points are not cut this far
     follow_closely_after_stall_m: float = _p(1.0, 'm', 0.0, 50.0, 'after a stall, path points are not cut this far')
     stall_timeout_s: float = _p(20.0, 's', 0.1, 86400.0, 'no progress towards the target for this long drops it')
