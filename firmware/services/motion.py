@@ -107,7 +107,7 @@ class PathFollower:
 # not see counts no more than that); hits with no surface through them (beams grazing a wall
 # far apart, edges) do not count.
 SLIP_SHARES = np.linspace(0.0, 1.0, 11)
-SLIP_MAX_TURN_RAD = 0.1          # scans farther apart in heading start the check over
+SLIP_MAX_TURN_RAD = 0.5          # scans farther apart in heading start the check over
 SLIP_MIN_BEAMS = 30
 SLIP_MISFIT_CAP_M = 0.2
 SLIP_SURFACE_GAP_M = 0.3         # neighbouring hits farther apart are no surface
