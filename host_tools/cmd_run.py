@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import signal
 import sys
 import threading
@@ -12,7 +11,7 @@ from host_tools.options import FRAMES, JSON, MAP, MAX_SIM_S, QUIET, RADIO, ROBOT
 from host_tools.overrides import combine_overrides, describe, params_help, params_with
 from host_tools.progress import progress_bar
 from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, strict_dumps, write_text
-from world_sim.world import WorldParams
+from world_sim.world import LIDAR_PHASE_HELP, WHEEL_SLIP_HELP, WorldParams
 
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as a shell reports a command Ctrl-C ended
 
@@ -27,11 +26,8 @@ OPTIONS = (
     Opt("--start", "pose", "start pose in metres (and degrees; default the map's yaw): once, the centre of the "
         "team's staging area (default: the map's start); once per robot, each robot's own start",
         repeat=True, metavar="X,Y[,YAW_DEG]"),
-    Opt("--wheel-slip", "float", "share of the commanded wheel travel the encoders report while a wall holds the "
-        "body back: 0, the wheels stop with it; 1, they spin on and odometry runs on as if the robot drove",
-        lo=0.0, hi=1.0, default=0.0, metavar="FRAC"),
-    Opt("--lidar-phase-ms", "float", "the LiDAR's first scan this long after the start, then one every 100 ms: "
-        "scans arrive between the firmware's 50 ms ticks", unit="ms", lo=0.0, hi=99.999, default=0.0, metavar="MS"),
+    Opt("--wheel-slip", "float", WHEEL_SLIP_HELP, lo=0.0, hi=1.0, default=0.0, metavar="FRAC"),
+    Opt("--lidar-phase-ms", "float", LIDAR_PHASE_HELP, unit="ms", lo=0.0, hi=99.999, default=0.0, metavar="MS"),
     SET, JSON,
     Opt("--out", "out_dir", "write mission.png and mission.json here (each replaced only by a complete new one)",
         metavar="DIR"),
@@ -56,8 +52,7 @@ def main(args: argparse.Namespace) -> int:
     except (ValueError, OutputPathError) as exc:
         print(f"lorascout run: {exc}", file=sys.stderr)
         return 2
-    world_params = dataclasses.replace(WorldParams(), wheel_slip_frac=args.wheel_slip,
-                                       lidar_phase_us=round(args.lidar_phase_ms * 1000))
+    world_params = WorldParams().with_slip_and_lidar_phase(args.wheel_slip, args.lidar_phase_ms)
     cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
                         max_sim_s=args.max_sim_s, radio=args.radio, starts=tuple(args.start),
                         strategy=args.strategy, frames=args.frames, serial_radio=args.serial_radio,

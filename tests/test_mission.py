@@ -135,6 +135,18 @@ def test_cli_run_json_and_png(tmp_path):
     assert (tmp_path / "mission.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_cli_run_takes_wheel_slip_and_a_lidar_phase_and_refuses_them_out_of_range():
+    out = _cli("run", "--map", "cave:2:30x30", "--max-sim-s", "5", "--wheel-slip", "1", "--lidar-phase-ms", "37",
+               "--json", "--quiet")
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout)
+    assert report["world"] == {"wheel_slip_frac": 1.0, "lidar_phase_us": 37_000}
+    assert report["longest_push_s"] == [0.0]
+    for option, value in (("--wheel-slip", "1.5"), ("--lidar-phase-ms", "100")):
+        out = _cli("run", "--map", "cave:2:30x30", option, value, "--quiet")
+        assert out.returncode == 2 and option in out.stderr
+
+
 def test_cli_run_reports_a_bad_map_clearly(tmp_path):
     bad = tmp_path / "m.yaml"
     bad.write_text("image: m.pgm\nresolution: -1\norigin: [0, 0, 0]\nnegate: 0\n"

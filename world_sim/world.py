@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import operator
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -28,6 +28,11 @@ from world_sim.seeding import stream
 
 # Measurements a robot has not collected are dropped oldest first beyond this many.
 MAX_PENDING_MEASUREMENTS = 1024
+# What the command line and a robot's [world] table say of the two settings they take.
+WHEEL_SLIP_HELP = ("share of the commanded wheel travel the encoders report while a wall holds the body back "
+                   "(0: the wheels stop with it; 1: they spin on, and odometry runs on as if the robot drove)")
+LIDAR_PHASE_HELP = ("the LiDAR's first scan this long after the start, then one every 100 ms: scans arrive between "
+                    "the firmware's 50 ms ticks")
 
 
 @dataclass(frozen=True)
@@ -39,8 +44,8 @@ class WorldParams:
     lidar_range_m: float = 10.0
     lidar_noise_std_m: float = 0.01      # Gaussian, on beams that hit something
     lidar_rate_hz: float = 10.0
-    # The LiDAR's first scan comes this long after the start, then one every period: with a
-    # phase or a rate that is no multiple of the firmware's tick, scans arrive between ticks.
+    # The first scan this long after the start, then one every period: with a phase or a rate
+    # that is no multiple of the firmware's tick, scans arrive between ticks.
     lidar_phase_us: int = 0
     # Odometry drift is a random walk whose variance grows linearly with the motion:
     # position error std = odom_trans_noise_per_m * sqrt(metres travelled) per axis,
@@ -50,10 +55,7 @@ class WorldParams:
     odom_yaw_noise_per_rad: float = 0.001
     odom_yaw_drift_per_m: float = 0.0002
     odom_speed_noise_frac: float = 0.01  # relative std of the reported v and omega (encoder scale)
-    # Wheel slip: the share of the commanded wheel travel the encoders report while a wall holds
-    # the body back (0: the wheels stop with the body; 1: they spin at the commanded speed, and
-    # odometry runs on as if the robot drove).
-    wheel_slip_frac: float = 0.0
+    wheel_slip_frac: float = 0.0         # WHEEL_SLIP_HELP
     uwb_noise_std_m: float = 0.05
     # NLOS: when the straight path between two robots crosses any wall, the first path
     # arrives late: a fixed uwb_nlos_bias_m plus uwb_nlos_bias_per_wall_m per metre of wall
@@ -90,6 +92,11 @@ class WorldParams:
         for name in ("lidar_rate_hz", "uwb_rate_hz", "aoa_rate_hz"):
             if round(1e6 / getattr(self, name)) < 1:
                 raise ValueError(f"WorldParams.{name} = {getattr(self, name)!r} is faster than 1 MHz")
+
+    def with_slip_and_lidar_phase(self, wheel_slip_frac: float, lidar_phase_ms: float) -> WorldParams:
+        """These parameters with wheel_slip_frac and a LiDAR phase given in milliseconds (as
+        the command line and a robot's [world] table give it)."""
+        return replace(self, wheel_slip_frac=wheel_slip_frac, lidar_phase_us=round(lidar_phase_ms * 1000))
 
     @property
     def lidar_period_us(self) -> int:

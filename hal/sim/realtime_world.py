@@ -13,7 +13,6 @@ only this robot's frames: the team's other robots are other processes.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any, Mapping
 
@@ -22,7 +21,7 @@ from hal.lora import RadioProfile
 from radio_sim.channel import Channel
 from world_sim.map_spec import check_map_spec, resolve_map
 from world_sim.ros_map import reachable_free
-from world_sim.world import World, WorldParams
+from world_sim.world import LIDAR_PHASE_HELP, WHEEL_SLIP_HELP, World, WorldParams
 
 RESOURCE = "sim-world"            # the BuildContext resource name the sim backends ask for
 ROBOT_INDEX = 0                   # the one robot of this world
@@ -43,10 +42,8 @@ WORLD_SETTINGS = (
     Setting("start_y_m", "float", "start position (with start_x_m)", unit="m", default=None, lo=-1e6, hi=1e6),
     Setting("start_yaw_deg", "float", "start heading (default: the map's)", unit="deg", default=None,
             lo=-360.0, hi=360.0),
-    Setting("wheel_slip_frac", "float", "share of the commanded wheel travel the encoders report while a wall holds "
-            "the body back (0: the wheels stop with it; 1: they spin on)", default=0.0, lo=0.0, hi=1.0),
-    Setting("lidar_phase_ms", "float", "the LiDAR's first scan this long after the start, then one every 100 ms",
-            unit="ms", default=0.0, lo=0.0, hi=99.999),
+    Setting("wheel_slip_frac", "float", WHEEL_SLIP_HELP, default=0.0, lo=0.0, hi=1.0),
+    Setting("lidar_phase_ms", "float", LIDAR_PHASE_HELP, unit="ms", default=0.0, lo=0.0, hi=99.999),
 )
 
 
@@ -84,7 +81,7 @@ class RealTimeWorld:
     def __init__(self, map: str, seed: int = 0, start_x_m: float | None = None, start_y_m: float | None = None,
                  start_yaw_deg: float | None = None, wheel_slip_frac: float = 0.0, lidar_phase_ms: float = 0.0,
                  params: WorldParams = WorldParams()) -> None:
-        params = dataclasses.replace(params, wheel_slip_frac=wheel_slip_frac, lidar_phase_us=round(lidar_phase_ms * 1000))
+        params = params.with_slip_and_lidar_phase(wheel_slip_frac, lidar_phase_ms)
         occ, map_start, self.map_label = resolve_map(map)
         x, y, yaw = map_start
         if start_x_m is not None:
