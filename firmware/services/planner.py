@@ -264,7 +264,6 @@ class Planner:
             return None  # the only reachable place on the way is where we stand: no progress
         return paths.path(best[1][0], best[1][1])
 
-
     def _walled_off(self, place_xy_m: np.ndarray, goal: tuple[int, int], reachable: np.ndarray,
                     state: np.ndarray) -> bool:
         """Is the place in the window, with a grid-reachable cell near it, farther than a
