@@ -36,6 +36,7 @@ from hal.odrive_can import (AXIS_STATE_CLOSED_LOOP_CONTROL, AXIS_STATE_IDLE, SET
                             SET_INPUT_VEL, DiffDriveGeometry, encoder_estimates)
 from hal.lora import RadioProfile
 from hal.samples import DriveLimits, LidarScan, OdometrySample, RadioRxFrame, RadioTxDone
+from world_sim.occupancy_map import OccupancyMap
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -133,6 +134,14 @@ class ScriptedHal:
             agent.tick()
             self.t_us += 50_000
         return agent
+
+
+def room(width_m: float, height_m: float, res: float = 0.1) -> OccupancyMap:
+    """Free rectangle with a one-cell wall border."""
+    rows, cols = int(round(height_m / res)), int(round(width_m / res))
+    free = np.ones((rows, cols), dtype=bool)
+    free[0, :] = free[-1, :] = free[:, 0] = free[:, -1] = False
+    return OccupancyMap(free=free, resolution_m=res, origin_x_m=0.0, origin_y_m=0.0, name="room")
 
 
 def paint_box(local_map: LocalMap, x0_m: float, x1_m: float, y0_m: float, y1_m: float, logodds: float) -> None:

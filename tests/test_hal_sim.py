@@ -20,20 +20,13 @@ from hal.sim.factory import build_sim_hal
 from hal.sim.lidar import SimLidar
 from hal.sim.odometry import SimOdometry
 from hal.sim.uwb import SimUwbRanger
+from tests.doubles import room
 from world_sim.occupancy_map import OccupancyMap
 from world_sim.raycast import cast_rays, mark_observed
 from world_sim.world import World, WorldParams
 
 # Cheap sensors for tests that only need motion or radios.
 QUIET = WorldParams(lidar_beams=8, lidar_rate_hz=0.5)
-
-
-def room(width_m: float, height_m: float, res: float = 0.1) -> OccupancyMap:
-    """Free rectangle with a one-cell wall border."""
-    rows, cols = int(round(height_m / res)), int(round(width_m / res))
-    free = np.ones((rows, cols), dtype=bool)
-    free[0, :] = free[-1, :] = free[:, 0] = free[:, -1] = False
-    return OccupancyMap(free=free, resolution_m=res, origin_x_m=0.0, origin_y_m=0.0, name="room")
 
 
 def divided_room() -> OccupancyMap:

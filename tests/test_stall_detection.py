@@ -12,7 +12,7 @@ from firmware.services.motion import StallDetector
 from hal.sim.drive import SimDriveBase
 from hal.sim.lidar import SimLidar
 from hal.sim.odometry import SimOdometry
-from tests.test_hal_sim import room
+from tests.doubles import room
 from world_sim.occupancy_map import OccupancyMap
 from world_sim.world import World, WorldParams
 
@@ -64,16 +64,13 @@ def test_a_body_pushing_a_wall_is_told_within_two_seconds_whether_the_wheels_sto
         assert slipped and all(behind_m > 0.5 * P.slip_check_m and abs(off_m) < 0.05 for behind_m, off_m in slipped)
 
 
-@pytest.mark.parametrize("start,heading", [((2.0, 4.0), 0.0), ((2.0, 1.0), 0.0)])
-def test_driving_freely_is_never_called_stuck_even_along_a_featureless_corridor(start, heading):
-    # Along the middle of the room, and along a 2 m wide, 40 m long corridor whose far end is
-    # beyond the LiDAR's 10 m for most of the way (every share of the travel fits its walls alike).
-    corridor = room(40.0, 2.0)
-    occ = room(20.0, 8.0) if start[1] == 4.0 else corridor
-    stuck_s, slipped, _ = _drive(occ, (*start, heading), 0.6, 20.0 if occ is corridor else 14.0, slip=1.0)
-    far_end_x = 39.9 - 0.25
-    if occ is corridor:
-        assert not [t for t in stuck_s if 2.0 + 0.6 * t < far_end_x - 0.1]
-    else:
-        assert not [t for t in stuck_s if 2.0 + 0.6 * t < 19.9 - 0.25 - 0.1]
+@pytest.mark.parametrize("width_m,height_m,start_y_m,seconds", [(20.0, 8.0, 4.0, 14.0), (40.0, 2.0, 1.0, 20.0)])
+def test_driving_freely_is_never_called_stuck_even_along_a_featureless_corridor(width_m, height_m, start_y_m,
+                                                                              seconds):
+    # Along the middle of a 20 x 8 m room, and along a 2 m wide, 40 m long corridor whose far
+    # end is beyond the LiDAR's 10 m for most of the way (every share of the travel fits its
+    # walls alike); east from x = 2 m at 0.6 m/s.
+    stuck_s, slipped, _ = _drive(room(width_m, height_m), (2.0, start_y_m, 0.0), 0.6, seconds, slip=1.0)
+    far_end_x = width_m - 0.1 - 0.25
+    assert not [t for t in stuck_s if 2.0 + 0.6 * t < far_end_x - 0.1]
     assert not slipped or stuck_s

@@ -157,14 +157,14 @@ class StallDetector:
         if self.p.slip_check_m <= 0 or self._last_cmd_v <= 0.05:
             self._reference = None
             return None
-        points = scan_points(angle_min_rad, angle_increment_rad, ranges_m, range_max_m)
         ref = self._reference
-        if ref is None or abs(_wrap(yaw_rad - ref[2])) > SLIP_MAX_TURN_RAD:
-            self._reference = (x_m, y_m, yaw_rad, points)
+        restart = ref is None or abs(_wrap(yaw_rad - ref[2])) > SLIP_MAX_TURN_RAD
+        if not restart and math.hypot(x_m - ref[0], y_m - ref[1]) < self.p.slip_check_m:
             return None
-        if math.hypot(x_m - ref[0], y_m - ref[1]) < self.p.slip_check_m:
-            return None
+        points = scan_points(angle_min_rad, angle_increment_rad, ranges_m, range_max_m)
         self._reference = (x_m, y_m, yaw_rad, points)
+        if restart:
+            return None
         if len(points) < SLIP_MIN_BEAMS or len(ref[3]) < SLIP_MIN_BEAMS:
             return None
         share = travel_share_seen(ref[3], points, x_m - ref[0], y_m - ref[1], ref[2], yaw_rad)
@@ -201,7 +201,7 @@ def travel_share_seen(ref_points: np.ndarray, points: np.ndarray, dx_m: float, d
     misfit = np.empty(len(SLIP_SHARES))
     for k, share in enumerate(SLIP_SHARES):
         moved = turned + share * travel
-        gap_m, nearest = tree.query(moved)
+        _, nearest = tree.query(moved)
         along_normal_m = np.abs(np.einsum("ij,ij->i", moved - ref_points[nearest], normals[nearest]))
         on_surface = ~np.isnan(along_normal_m)
         if np.count_nonzero(on_surface) < SLIP_MIN_BEAMS:
