@@ -44,6 +44,13 @@ INPUT_MODE_VEL_RAMP = 2        # the axis ramps to each new velocity at its conf
 
 MAX_NODE_ID = 0x3F             # 6 bits: 11-bit id minus the 5-bit command
 
+# Payload layouts (struct formats), shared with the axis emulator (world_sim.devices.odrive_emulator).
+INPUT_VEL_FORMAT = "<ff"           # Set_Input_Vel: velocity turn/s, torque feed-forward Nm
+AXIS_STATE_FORMAT = "<I"           # Set_Axis_State: requested state
+CONTROLLER_MODE_FORMAT = "<II"     # Set_Controller_Mode: control mode, input mode
+ENCODER_ESTIMATES_FORMAT = "<ff"   # Get_Encoder_Estimates: position turns, velocity turn/s
+HEARTBEAT_FORMAT = "<IBBBB"        # Heartbeat: axis error, axis state, procedure result, trajectory done, reserved
+
 
 def frame_id(node_id: int, command: int) -> int:
     if not 0 <= node_id <= MAX_NODE_ID or not 0 <= command <= 0x1F:
@@ -53,28 +60,28 @@ def frame_id(node_id: int, command: int) -> int:
 
 def set_input_vel(node_id: int, turns_per_s: float, torque_ff_nm: float = 0.0) -> can.Message:
     return can.Message(arbitration_id=frame_id(node_id, SET_INPUT_VEL), is_extended_id=False,
-                       data=struct.pack("<ff", turns_per_s, torque_ff_nm))
+                       data=struct.pack(INPUT_VEL_FORMAT, turns_per_s, torque_ff_nm))
 
 
 def set_axis_state(node_id: int, state: int) -> can.Message:
     return can.Message(arbitration_id=frame_id(node_id, SET_AXIS_STATE), is_extended_id=False,
-                       data=struct.pack("<I", state))
+                       data=struct.pack(AXIS_STATE_FORMAT, state))
 
 
 def set_controller_mode(node_id: int, control_mode: int, input_mode: int) -> can.Message:
     return can.Message(arbitration_id=frame_id(node_id, SET_CONTROLLER_MODE), is_extended_id=False,
-                       data=struct.pack("<II", control_mode, input_mode))
+                       data=struct.pack(CONTROLLER_MODE_FORMAT, control_mode, input_mode))
 
 
 def encoder_estimates(node_id: int, position_turns: float, velocity_turns_per_s: float) -> can.Message:
-    """What an axis broadcasts (used by tests and bench rigs that stand in for an ODrive)."""
+    """What an axis broadcasts (the axis emulator, world_sim.devices.odrive_emulator, sends it)."""
     return can.Message(arbitration_id=frame_id(node_id, GET_ENCODER_ESTIMATES), is_extended_id=False,
-                       data=struct.pack("<ff", position_turns, velocity_turns_per_s))
+                       data=struct.pack(ENCODER_ESTIMATES_FORMAT, position_turns, velocity_turns_per_s))
 
 
 def heartbeat(node_id: int, axis_error: int, axis_state: int) -> can.Message:
     return can.Message(arbitration_id=frame_id(node_id, HEARTBEAT), is_extended_id=False,
-                       data=struct.pack("<IBBBB", axis_error, axis_state, 0, 0, 0))
+                       data=struct.pack(HEARTBEAT_FORMAT, axis_error, axis_state, 0, 0, 0))
 
 
 @dataclass(frozen=True)
@@ -291,7 +298,7 @@ class OdriveWheelOdometry:
             if len(data) < 8:
                 self.counters.malformed += 1
                 return
-            turns, velocity = struct.unpack_from("<ff", data)
+            turns, velocity = struct.unpack_from(ENCODER_ESTIMATES_FORMAT, data)
             if not (math.isfinite(turns) and math.isfinite(velocity)):
                 self.counters.malformed += 1
                 return

@@ -9,7 +9,6 @@ from __future__ import annotations
 import math
 import os
 import signal
-import struct
 import subprocess
 import sys
 import threading
@@ -32,10 +31,10 @@ from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
 from hal import rn2483_protocol as P
 from hal.bundle import Hal
-from hal.odrive_can import (AXIS_STATE_CLOSED_LOOP_CONTROL, AXIS_STATE_IDLE, SET_AXIS_STATE, SET_CONTROLLER_MODE,
-                            SET_INPUT_VEL, DiffDriveGeometry, encoder_estimates)
+from hal.odrive_can import DiffDriveGeometry
 from hal.lora import RadioProfile
 from hal.samples import DriveLimits, LidarScan, OdometrySample, RadioRxFrame, RadioTxDone
+from world_sim.devices.odrive_emulator import OdriveAxes
 from world_sim.occupancy_map import OccupancyMap
 
 REPO = Path(__file__).resolve().parents[1]
@@ -331,38 +330,42 @@ class ModemServer:
 
 
 class FakeAxes:
-    """Two ODrive axes on the bus: they take the drive's commands and, on `run`, turn at the
-    commanded speed and broadcast their encoder estimates every `period_s`."""
+    """Two emulated ODrive axes on the bus (world_sim.devices.odrive_emulator, the HIL world's
+    axes): they take the drive's commands and, on `run`, turn at the commanded speed and
+    broadcast their encoder estimates every `period_s`."""
 
     def __init__(self, channel: str, geometry: DiffDriveGeometry) -> None:
         self.bus = can.Bus(channel, interface="virtual")
         self.nodes = (geometry.left_node, geometry.right_node)
-        self.turns = {n: 0.0 for n in self.nodes}
-        self.velocity = {n: 0.0 for n in self.nodes}
-        self.state = {n: AXIS_STATE_IDLE for n in self.nodes}
-        self.control_mode = {n: None for n in self.nodes}
+        self.emulated = OdriveAxes(self.bus, self.nodes)
+
+    @property
+    def turns(self) -> dict[int, float]:
+        return {n: self.emulated[n].turns for n in self.nodes}
+
+    @property
+    def velocity(self) -> dict[int, float]:
+        """The last velocity each axis was sent."""
+        return {n: self.emulated[n].input_vel for n in self.nodes}
+
+    @property
+    def state(self) -> dict[int, int]:
+        return {n: self.emulated[n].state for n in self.nodes}
+
+    @property
+    def control_mode(self) -> dict[int, int | None]:
+        return {n: self.emulated[n].control_mode for n in self.nodes}
 
     def take_commands(self) -> None:
-        while (msg := self.bus.recv(timeout=0.0)) is not None:
-            node, command = msg.arbitration_id >> 5, msg.arbitration_id & 0x1F
-            if node not in self.nodes:
-                continue
-            if command == SET_INPUT_VEL:
-                self.velocity[node] = struct.unpack("<ff", bytes(msg.data))[0]
-            elif command == SET_AXIS_STATE:
-                self.state[node] = struct.unpack("<I", bytes(msg.data))[0]
-            elif command == SET_CONTROLLER_MODE:
-                self.control_mode[node] = struct.unpack("<II", bytes(msg.data))[0]
+        self.emulated.take_commands()
 
     def run(self, seconds: float, period_s: float = 0.01) -> None:
         self.take_commands()
         for _ in range(round(seconds / period_s)):
             for n in self.nodes:
-                if self.state[n] == AXIS_STATE_CLOSED_LOOP_CONTROL:
-                    self.turns[n] += self.velocity[n] * period_s
-                    self.bus.send(encoder_estimates(n, self.turns[n], self.velocity[n]))
-                else:
-                    self.bus.send(encoder_estimates(n, self.turns[n], 0.0))
+                axis = self.emulated[n]
+                axis.turn(axis.commanded_turns_per_s() * period_s, period_s)
+            self.emulated.broadcast_estimates()
 
 
 class ManualWallClock(StepClock):
