@@ -16,6 +16,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sweep": ("host_tools.cmd_sweep", "run maps x strategies x seeds and tabulate p_max and bandwidth"),
     "map": ("host_tools.cmd_map", "the area a map asks a team to cover, and how much of it a planner can see at all"),
     "robot": ("host_tools.cmd_robot", "run one robot's firmware in real time on the peripherals a configuration file names"),
+    "hil": ("host_tools.cmd_hil", "hardware in the loop: lorascout robot processes on a real-time world's emulated devices"),
 }
 
 
