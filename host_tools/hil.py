@@ -36,7 +36,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import can
@@ -137,6 +137,9 @@ class HilWorld:
         self.reachable = _reachable_from(occ, self.start_poses, params.robot_radius_m)
         self.channel = Channel(settings.profile, settings.seed, occupancy=occ)
         for i in range(settings.robots):
+            # The modem bank's service thread may ask for a position while this thread steps
+            # the world: the pose it reads is at most one step (10 ms) old, which the path
+            # loss does not notice.
             self.channel.attach(i, lambda i=i: self.world.true_pose(i)[:2])
         self.stats = LoopStats()
         self._closers: list[Callable[[], None]] = []
@@ -327,15 +330,13 @@ class RobotRun:
     proc: subprocess.Popen | None = None
     report: dict | None = None
     exit_status: int | None = None
-    extra_args: tuple = field(default_factory=tuple)
 
     def start(self) -> None:
         # A session of its own: a Ctrl-C on the terminal reaches the world, which stops the
         # robots with one SIGTERM each (a second signal would stop a robot at once).
         with open(self.log, "wb") as log, open(self.summary, "wb") as out:
             self.proc = subprocess.Popen(
-                [sys.executable, "-m", "host_tools.cli", "robot", "--config", str(self.config), "--json",
-                 *self.extra_args], stdout=out, stderr=log, stdin=subprocess.DEVNULL, start_new_session=True,
+                [sys.executable, "-m", "host_tools.cli", "robot", "--config", str(self.config), "--json"], stdout=out, stderr=log, stdin=subprocess.DEVNULL, start_new_session=True,
                 cwd=Path(__file__).resolve().parents[1])
 
     def poll(self) -> bool:
