@@ -7,6 +7,7 @@ import math
 import os
 import subprocess
 import sys
+import signal
 import threading
 from types import SimpleNamespace
 
@@ -152,3 +153,30 @@ def test_two_robot_processes_explore_a_30_m_cave_in_real_time_on_emulated_device
         assert r["ticks"] > 500, r
         assert r["worst_overrun_share"] <= 0.05, (r, logs[r["robot_id"]])
     assert report["loop"]["loops"] > 0 and report["sim_s"] >= max(r["wall_s"] for r in report["robots"])
+
+
+def test_serve_only_writes_configurations_a_robot_accepts_and_stops_on_a_signal(tmp_path):
+    """`lorascout hil --serve-only` prints each robot's configuration file and serves the
+    world for robots started by hand, until a signal."""
+    world = subprocess.Popen([sys.executable, "-m", "host_tools.cli", "hil", "--serve-only", "--robots", "2",
+                              "--map", "cave:1:20x20", "--out", str(tmp_path), "--max-s", "60"],
+                             cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        paths = [world.stdout.readline().strip() for _ in range(2)]
+        assert paths == [str(tmp_path / "robot0.toml"), str(tmp_path / "robot1.toml")], world.stderr.read()
+        check = subprocess.run([sys.executable, "-m", "host_tools.cli", "robot", "--config", paths[1], "--check",
+                                "--json"], cwd=REPO, capture_output=True, text=True, timeout=60)
+        assert check.returncode == 0, check.stderr
+        described = json.loads(check.stdout)
+        assert described["robot_id"] == 1 and described["team_size"] == 2
+        p = described["peripherals"]
+        assert {k: p[k]["backend"] for k in ("lidar", "odometry", "drive", "radio", "uwb")} == {
+            "lidar": "rplidar", "odometry": "odrive-can", "drive": "odrive-can", "radio": "rn2483", "uwb": "dwm1001"}
+        assert (p["drive"]["interface"], p["drive"]["left_node"], p["drive"]["right_node"]) == ("udp_multicast", 2, 3)
+        assert p["lidar"]["port"].startswith("/dev/pts/") and p["radio"]["port"] != p["lidar"]["port"]
+        world.send_signal(signal.SIGINT)
+        assert world.wait(timeout=10) == 130
+    finally:
+        if world.poll() is None:
+            world.kill()
+            world.wait()
