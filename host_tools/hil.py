@@ -153,7 +153,12 @@ class HilWorld:
 
     def _open_devices(self) -> None:
         s = self.settings
-        self.bus = can.Bus(channel=s.can_channel, interface=CAN_INTERFACE)
+        try:
+            self.bus = can.Bus(channel=s.can_channel, interface=CAN_INTERFACE)
+        except (can.CanError, OSError) as exc:
+            raise HilError(f"cannot open the CAN bus ({CAN_INTERFACE} on {s.can_channel}): {exc}; without IPv6, "
+                           "give an IPv4 group (--can-channel 239.74.163.2; with a TTL of 1 its frames reach the "
+                           "local network)") from exc
         self._closers.append(self.bus.shutdown)
         nodes = [n for i in range(s.robots) for n in wheel_nodes(i)]
         _refuse_a_busy_bus(self.bus, nodes, s.can_channel)
