@@ -134,6 +134,21 @@ class ExplorerAgent:
         self.ticks += 1
         self.scheduler.run_due(self.hal.clock.now_us(), profiler)
 
+    def sign_off(self, now_us: int) -> bool:
+        """The robot is about to leave the team (its host ends the mission): queue its status
+        heartbeat now, so that teammates hear it is done instead of waiting for it to fall
+        silent. It goes out in the robot's next slot, with ticks as usual. False, and nothing
+        queued, for a robot without a radio."""
+        if self.link is None:
+            return False
+        self._send_heartbeat(self.pose.read())
+        return True
+
+    def radio_quiet(self, now_us: int) -> bool:
+        """Nothing of this robot's waits to be sent and none of its frames is on the air at
+        `now_us` (always, without a radio): what it queued, a sign-off among it, has gone."""
+        return self.link is None or (self.link.queue_len == 0 and self.link.on_air_until_us() <= now_us)
+
     @property
     def settled(self) -> bool:
         """Finished, and nothing left that its scheme has to tell the team."""

@@ -124,6 +124,8 @@ def main(args: argparse.Namespace) -> int:
             wall_s = time.monotonic() - t0
             report = {**_identity(settings, args), "ended": why, "wall_s": round(wall_s, 3), **hil.report()}
             report["robots"] = [{**run.to_json(), **truth} for run, truth in zip(runs, report["robots"])]
+            report["robots_exited_within_s"] = _exited_within_s(report["robots"])
+            report["lost_receptions"] = _lost(report["air"])
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -177,6 +179,17 @@ def _identity(settings: HilSettings, args: argparse.Namespace) -> dict:
             "out": str(args.out)}
 
 
+def _exited_within_s(robots: list[dict]) -> float | None:
+    """From the first robot process's exit to the last's, on the world's clock."""
+    ends = [r["exited_s"] for r in robots if r["exited_s"] is not None]
+    return round(max(ends) - min(ends), 3) if len(ends) == len(robots) else None
+
+
+def _lost(air: dict) -> int:
+    """Receptions that did not arrive, whatever the reason (radio_sim.air_log.FATES)."""
+    return sum(v for k, v in air.items() if k not in ("frames", "received", "duplicates_delivered"))
+
+
 def _termination(report: dict) -> str:
     """"complete" when every robot stopped by itself with its mission complete; else what
     ended the first robot that did not."""
@@ -197,9 +210,11 @@ def format_report(r: dict) -> str:
         ticks = x["ticks"] or 0
         share = f"{x['worst_overrun_share'] * 100:.2f} %" if x["worst_overrun_share"] is not None else "-"
         overruns = ", ".join(f"{name} {n}" for name, n in x["task_overruns"].items() if n) or "none"
-        lines.append(f"robot {x['robot_id']:<9}{x['termination']} after {x['wall_s'] or 0:.1f} s (exit "
-                     f"{x['exit_status']}): {ticks} ticks, {x['tick_overruns']} over 50 ms; task overruns {overruns}; "
-                     f"worst {share} of ticks; path {x['path_length_m']:.1f} m")
+        ended = f", exited at {x['exited_s']:.1f} s" if x.get("exited_s") is not None else ""
+        signed = f", signed off: {x['sign_off']} in {x['sign_off_s']:.1f} s" if x.get("sign_off") else ""
+        lines.append(f"robot {x['robot_id']:<9}{x['termination']} after {x['wall_s'] or 0:.1f} s{ended}{signed} "
+                     f"(exit {x['exit_status']}): {ticks} ticks, {x['tick_overruns']} over 50 ms; task overruns "
+                     f"{overruns}; worst {share} of ticks; path {x['path_length_m']:.1f} m")
         if x.get("error"):
             lines.append(f"{'':15}error: {x['error']}")
     loop = r["loop"]
@@ -207,6 +222,9 @@ def format_report(r: dict) -> str:
                  f">= 50 ms late, the latest {loop['max_lag_ms']:.0f} ms)")
     air = r["air"]
     fates = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in sorted(air.items()) if v and k != "frames")
-    lines.append(f"air            {air.get('frames', 0)} frames; receptions: {fates or 'none'}")
+    lines.append(f"air            {air.get('frames', 0)} frames; receptions: {fates or 'none'} ({_lost(air)} lost)")
+    if r.get("robots_exited_within_s") is not None:
+        lines.append(f"ends           the robot processes exited within {r['robots_exited_within_s']:.1f} s of "
+                     "each other")
     lines.append(f"files          {r['out']}/robotN.toml, robotN.log, robotN.json, hil.json")
     return "\n".join(lines)

@@ -4,8 +4,9 @@ peripherals its configuration names (host_tools.robot_config), simulated or real
 It checks the whole configuration before opening any device (`--check` stops there), opens
 the peripherals through the backend registry, sets the firmware up and runs its tick loop
 in real time (host_tools.robot_loop), counting every task's overruns against its budget.
-It ends when the mission is complete, after `--max-s`, or on SIGINT or SIGTERM; whatever
-ends it, the drive is commanded to zero and every device closed, and a summary printed.
+It ends when the mission is complete (once its sign-off heartbeat has left the air), after
+`--max-s`, or on SIGINT or SIGTERM; whatever ends it, the drive is commanded to zero and every
+device closed, and a summary printed.
 
 Exit status: 0 for a run that ended as asked (complete, time limit, a signal), 1 when a
 device failed (at start-up or while running), 2 for a configuration that cannot run.
@@ -219,6 +220,8 @@ def format_report(r: dict) -> str:
              f"radio profile {r['radio_profile'] or '(none)'}   config {r['config']}",
              f"ended          {r['termination']} after {r['wall_s']:.1f} s wall (status {r['status']}); drive "
              + ("commanded to zero" if r["drive_stopped"] else "NOT confirmed stopped"),
+             *([f"signed off     {r['sign_off'].replace('_', ' ')} after {r['sign_off_s']:.1f} s"]
+               if r.get("sign_off") else []),
              f"ticks          {r['ticks']}: {r['tick']['overruns']} over {r['tick']['budget_ms']:.0f} ms, "
              f"{r['ticks_skipped']} skipped",
              f"{'task':<15}{'runs':>7}{'overruns':>10}{'mean ms':>10}{'max ms':>10}{'budget ms':>11}"]

@@ -335,6 +335,14 @@ class RobotRun:
     proc: subprocess.Popen | None = None
     report: dict | None = None
     exit_status: int | None = None
+    exited_s: float | None = None      # when the process was seen to have ended, on the world's clock
+
+    def poll_at(self, now_us: int) -> bool:
+        """poll(), noting `now_us` (the world's time) as the end when it is first seen."""
+        ended = self.poll()
+        if ended and self.exited_s is None:
+            self.exited_s = round(now_us / 1e6, 3)
+        return ended
 
     def start(self) -> None:
         # A session of its own: a Ctrl-C on the terminal reaches the world, which stops the
@@ -373,7 +381,8 @@ class RobotRun:
         tick_overruns = r.get("tick", {}).get("overruns", 0)
         worst = max([tick_overruns, *task_overruns.values()], default=0)
         return {"robot_id": self.index, "exit_status": self.exit_status, "termination": r.get("termination"),
-                "status": r.get("status"), "wall_s": r.get("wall_s"), "ticks": ticks,
+                "status": r.get("status"), "wall_s": r.get("wall_s"), "exited_s": self.exited_s,
+                "sign_off": r.get("sign_off"), "sign_off_s": r.get("sign_off_s"), "ticks": ticks,
                 "ticks_skipped": r.get("ticks_skipped"), "tick_overruns": tick_overruns,
                 "task_overruns": task_overruns,
                 "task_max_ms": {name: t["max_ms"] for name, t in tasks.items()},
@@ -394,7 +403,7 @@ def run_hil(hil: HilWorld, runs: list[RobotRun], max_s: float | None, interrupte
     state = {"why": None, "stop_sent_us": None}
 
     def should_stop(now_us: int) -> bool:
-        if all(run.poll() for run in runs):
+        if all([run.poll_at(now_us) for run in runs]):
             state["why"] = state["why"] or "robots_ended"
             return True
         if state["stop_sent_us"] is None:

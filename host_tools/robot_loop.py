@@ -16,6 +16,15 @@ The loop ends when the robot's mission is complete and no teammate it heard of i
 exploring (a finished robot stays on the air for them, relaying and answering, until they
 finish or fall silent), when `max_s` has passed, or when `should_stop()` names a reason (a
 signal). It never stops the drive itself: its caller does, whatever ended the loop.
+
+A robot that ends complete signs off first: when the stopping rule first holds, the firmware
+queues its status heartbeat (ExplorerAgent.sign_off), and the loop keeps ticking until that
+and everything else queued has left the air (ExplorerAgent.radio_quiet), at most
+SIGN_OFF_FRAMES TDMA frames (a radio that cannot send must not keep the robot), then ends
+"complete". A teammate that finished in the same moment and never heard this robot's done
+heartbeat hears it now, instead of waiting for this robot to age out of its roster (three
+heartbeat periods, 30 s). If the rule stops holding meanwhile (a teammate explores again), the
+sign-off is called off and the robot goes on.
 """
 from __future__ import annotations
 
@@ -27,6 +36,10 @@ from typing import Protocol
 from firmware.agent import ExplorerAgent
 
 log = logging.getLogger("lorascout.robot")
+
+# How long a robot signing off waits for its heartbeat to leave the air, in TDMA frames (on a
+# channel without slots: in the time the longest frame takes, rounded up to ticks).
+SIGN_OFF_FRAMES = 3
 
 
 class WallClock(Protocol):
@@ -82,6 +95,10 @@ class OverrunProfiler:
 class LoopResult:
     termination: str = "running"   # "complete", "time_limit", or what should_stop() said ("SIGTERM")
     wall_s: float = 0.0
+    # How the sign-off went: None (not complete, or not yet), "sent" (the heartbeat left the
+    # air), "timed_out" (it had not after SIGN_OFF_FRAMES), "no_radio".
+    sign_off: str | None = None
+    sign_off_s: float = 0.0        # from the sign-off to the end
     ticks: int = 0
     ticks_skipped: int = 0         # tick slots that passed while the loop was behind
     tick: RunTimes = field(default_factory=lambda: RunTimes(0))    # whole ticks against the tick period
@@ -91,7 +108,8 @@ class LoopResult:
         return self.tick.overruns + sum(t.overruns for t in self.tasks.values())
 
     def to_json(self) -> dict:
-        return {"termination": self.termination, "wall_s": round(self.wall_s, 3), "ticks": self.ticks,
+        return {"termination": self.termination, "wall_s": round(self.wall_s, 3),
+                "sign_off": self.sign_off, "sign_off_s": round(self.sign_off_s, 3), "ticks": self.ticks,
                 "ticks_skipped": self.ticks_skipped, "tick": self.tick.to_json(),
                 "tasks": {name: t.to_json() for name, t in self.tasks.items()}}
 
@@ -111,6 +129,16 @@ class RobotLoop:
         self.result = LoopResult(tick=RunTimes(self.tick_us), tasks=self.profiler.tasks)
         self._start_us = 0
         self._overruns_logged = 0
+        link = agent.link
+        if link is not None and link.tdma is not None:
+            frame_us = link.tdma.slot_us * link.tdma.slots
+        elif link is not None:
+            longest_us = link.profile.airtime_us(link.max_frame_bytes)
+            frame_us = -(-longest_us // self.tick_us) * self.tick_us + self.tick_us
+        else:
+            frame_us = 0
+        self.sign_off_timeout_us = SIGN_OFF_FRAMES * frame_us
+        self._signing_off_since_us: int | None = None
 
     def run(self, should_stop: Callable[[], str | None], max_s: float | None = None) -> LoopResult:
         """Tick until the mission is complete, max_s has passed or should_stop() gives a
@@ -146,11 +174,39 @@ class RobotLoop:
         agent = self.agent
         if reason := should_stop():
             return reason
-        if agent.done and not agent.roster.any_active(agent.hal.clock.now_us()):
-            return "complete"
+        now_us = agent.hal.clock.now_us()
+        if agent.done and not agent.roster.any_active(now_us):
+            if reason := self._sign_off(now_us):
+                return reason
+        elif self._signing_off_since_us is not None:
+            log.info("a teammate explores again (or this robot does): sign-off called off")
+            self._signing_off_since_us = None
         if max_s is not None and self.clock.now_us() - self._start_us >= max_s * 1e6:
             return "time_limit"
         return None
+
+    def _sign_off(self, now_us: int) -> str | None:
+        """The stopping rule holds: sign off, or wait for the sign-off to leave the air;
+        "complete" once it has (or the wait timed out)."""
+        agent, result = self.agent, self.result
+        since_us = self._signing_off_since_us
+        if since_us is None:
+            if not agent.sign_off(now_us):
+                result.sign_off = "no_radio"
+                return "complete"
+            log.info("mission complete and no teammate exploring: signing off")
+            self._signing_off_since_us = now_us
+            return None
+        if agent.radio_quiet(now_us):
+            result.sign_off = "sent"
+        elif now_us - since_us >= self.sign_off_timeout_us:
+            log.warning("the sign-off heartbeat has not left the air after %.1f s; stopping all the same",
+                        (now_us - since_us) / 1e6)
+            result.sign_off = "timed_out"
+        else:
+            return None
+        result.sign_off_s = (now_us - since_us) / 1e6
+        return "complete"
 
     def _log_progress(self) -> None:
         """One line of counts; a warning if something overran since the line before."""

@@ -135,7 +135,8 @@ def test_two_robot_processes_explore_a_30_m_cave_in_real_time_on_emulated_device
     processes, with the real serial and CAN drivers, explore cave:7:30x30 on the wall clock to
     at least 0.99 coverage of the true map, stop by themselves, and no task (nor the tick as a
     whole) overruns its budget in more than 5 % of the ticks. (The lockstep simulator, same
-    map and scheme: coverage 1.0, complete after 91 s simulated.)"""
+    map and scheme: coverage 1.0, complete after 91 s simulated.) Each signs off before it
+    stops, so neither waits 30 s for the other to fall silent."""
     # As a user runs it: numba on one thread per process (host_tools/__init__.py), not the two
     # that conftest.py sets for the kernels' thread-count tests; two robots with two threads
     # each and the world would share two cores.
@@ -152,6 +153,9 @@ def test_two_robot_processes_explore_a_30_m_cave_in_real_time_on_emulated_device
         assert r["exit_status"] == 0 and r["termination"] == "complete", (r, logs[r["robot_id"]])
         assert r["ticks"] > 500, r
         assert r["worst_overrun_share"] <= 0.05, (r, logs[r["robot_id"]])
+        assert r["sign_off"] == "sent", (r, logs[r["robot_id"]])
+    # Without the sign-off one robot outlived the other by about 30 s (three heartbeat periods).
+    assert report["robots_exited_within_s"] < 10, (report, logs)
     assert report["loop"]["loops"] > 0 and report["sim_s"] >= max(r["wall_s"] for r in report["robots"])
 
 

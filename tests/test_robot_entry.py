@@ -18,15 +18,17 @@ import pytest
 import serial
 
 from firmware.agent import ExplorerAgent
+from firmware.comms.frame import decode_frame
 from firmware.scheduler import Task
 from hal.config import BuildContext, Setting
+from hal.lora import PROFILES
 from hal.monotonic_clock import MonotonicClock
 from hal.odrive_can import AXIS_STATE_CLOSED_LOOP_CONTROL, AXIS_STATE_IDLE, DiffDriveGeometry
 from hal.registry import BACKENDS, backend_class, build_backend, check_backend
 from host_tools.robot_config import (RESOURCE_TABLES, DeviceError, config_help, load_robot_config,
                                      open_robot)
-from host_tools.robot_loop import RobotLoop, next_tick
-from tests.doubles import FakeAxes, ManualWallClock, RobotProcess, ScriptedHal, ScriptedSlowTask
+from host_tools.robot_loop import SIGN_OFF_FRAMES, RobotLoop, next_tick
+from tests.doubles import FakeAxes, FakeRadio, ManualWallClock, RobotProcess, ScriptedHal, ScriptedSlowTask
 
 REPO = Path(__file__).resolve().parents[1]
 SIM_EXAMPLE = REPO / "examples" / "robot-sim.toml"
@@ -301,6 +303,68 @@ def test_a_late_loop_keeps_the_tick_grid():
     assert next_tick(0, 120_000, 50_000) == (100_000, 1)        # a whole slot passed: skipped
 
 
+def radio_robot(clock: ManualWallClock, radio: FakeRadio, robot_id: int = 0) -> ExplorerAgent:
+    """Robot `robot_id` of two on eu868-g3 (MinPos), standing still on the scripted HAL with
+    `radio`, whose time follows `clock`."""
+    hal = dataclasses.replace(ScriptedHal(np.full(360, 8.0)).hal(), clock=clock, radio=radio, robot_id=robot_id)
+    agent = ExplorerAgent(hal, scheme="bayer-faigl:minpos", radio_profile=PROFILES["eu868-g3"], team_size=2)
+    agent.setup()
+    return agent
+
+
+def test_a_done_robot_signs_off_and_stops_once_its_heartbeat_has_left_the_air(caplog):
+    """Done, with no teammate exploring: the loop has the firmware queue its heartbeat (done)
+    and ends "complete" only after that frame has gone out in the robot's TDMA slot and ended
+    on the air, so a teammate that missed the earlier one hears it now."""
+    clock, radio = ManualWallClock(), FakeRadio(PROFILES["eu868-g3"])
+    clock.t_us = 1_000_000                       # robot 1's slot is [450, 900) ms of each 900 ms frame
+    agent = radio_robot(clock, radio, robot_id=1)
+    agent.done = True
+    with caplog.at_level(logging.INFO, logger="lorascout.robot"):
+        result = RobotLoop(agent, clock, followers=[lambda t: setattr(radio, "now_us", t)]).run(lambda: None)
+    assert result.termination == "complete" and result.sign_off == "sent", result
+    assert len(radio.sent) == 1
+    sent_us, payload = radio.sent[0]
+    frame = decode_frame(payload).frame
+    assert frame.sender_id == 1 and [(name, v["done"]) for name, v in frame.records] == [("pose", 1)]
+    assert sent_us == 1_350_000                  # the first tick in its slot (1.35 s = 0.9 + 0.45)
+    ended_on_air_us, loop_ended_us = sent_us + PROFILES["eu868-g3"].airtime_us(len(payload)), clock.t_us
+    assert ended_on_air_us <= loop_ended_us < ended_on_air_us + 100_000
+    assert result.sign_off_s == result.wall_s == (loop_ended_us - 1_000_000) / 1e6
+    assert result.to_json()["sign_off"] == "sent"
+    assert any("signing off" in r.getMessage() for r in caplog.records)
+
+
+def test_a_robot_whose_radio_cannot_send_stops_after_the_sign_off_timeout(caplog):
+    """A modem that refuses every frame must not keep a finished robot: it stops complete after
+    SIGN_OFF_FRAMES TDMA frames (3 x 900 ms on eu868-g3 for two), with a warning."""
+    clock, radio = ManualWallClock(), FakeRadio(PROFILES["eu868-g3"], refuse=True)
+    agent = radio_robot(clock, radio)
+    agent.done = True
+    with caplog.at_level(logging.INFO, logger="lorascout.robot"):
+        result = RobotLoop(agent, clock, followers=[lambda t: setattr(radio, "now_us", t)]).run(lambda: None)
+    assert result.termination == "complete" and result.sign_off == "timed_out" and radio.sent == []
+    assert SIGN_OFF_FRAMES == 3 and result.sign_off_s == 2.7 and result.wall_s == 2.7
+    assert any(r.levelno == logging.WARNING and "has not left the air" in r.getMessage() for r in caplog.records)
+
+
+def test_a_teammate_heard_exploring_again_calls_the_sign_off_off():
+    """Signing off (its heartbeat waits for its slot), the robot hears robot 1 exploring: it
+    stays, and runs until something else ends it."""
+    clock, radio = ManualWallClock(), FakeRadio(PROFILES["eu868-g3"])
+    clock.t_us = 500_000                         # robot 0's slot opens at 900 ms
+    agent = radio_robot(clock, radio)
+    agent.done = True
+
+    def teammate_explores(t_us: int) -> None:
+        radio.now_us = t_us
+        if t_us == 600_000:
+            agent.roster.heard_status(1, 3.0, 4.0, False, t_us)
+
+    result = RobotLoop(agent, clock, followers=[teammate_explores]).run(lambda: None, max_s=3.0)
+    assert result.termination == "time_limit" and result.sign_off is None
+
+
 def test_a_signal_ends_the_loop_after_the_tick_and_a_done_robot_stops_by_itself():
     clock = ManualWallClock()
     agent = ExplorerAgent(dataclasses.replace(ScriptedHal(np.full(360, 8.0)).hal(), clock=clock), scheme="independent")
@@ -309,7 +373,8 @@ def test_a_signal_ends_the_loop_after_the_tick_and_a_done_robot_stops_by_itself(
     result = RobotLoop(agent, clock).run(lambda: next(asked, "SIGTERM"))
     assert result.termination == "SIGTERM" and result.ticks == 1
     agent.done = True
-    assert RobotLoop(agent, clock).run(lambda: None).termination == "complete"
+    done = RobotLoop(agent, clock).run(lambda: None)
+    assert done.termination == "complete" and done.sign_off == "no_radio"     # nothing to sign off with
 
 
 # ---- the simulated robot, as a user runs it ----------------------------------------------------
