@@ -856,3 +856,83 @@ def crack_contours(free, occupied):
                 k += 1
                 starts[k] = n
     return corners, types, starts[:k + 1]
+
+
+@njit(cache=True)
+def nearest_points(ref_x, ref_y, query_x, query_y, cell_m):
+    """For each query point, the index of its nearest reference point (Euclidean; the lowest
+    index on an exact tie). The reference points are sorted into square cells cell_m wide;
+    a query visits the rings of cells around its own, nearest first, and stops once every
+    point of the rings beyond is at least as far as the nearest found: rings past ring r lie
+    r whole cells away. A scan's hits against the scan before it (the slip check): both are
+    a few hundred points a few centimetres apart, where a k-d tree spends most of its time
+    descending to them."""
+    n = ref_x.shape[0]
+    out = np.full(query_x.shape[0], -1, np.int64)
+    if n == 0:
+        return out
+    x0 = ref_x.min()
+    y0 = ref_y.min()
+    nx = int((ref_x.max() - x0) / cell_m) + 1
+    ny = int((ref_y.max() - y0) / cell_m) + 1
+    # Counting sort of the reference points by cell.
+    key = np.empty(n, np.int64)
+    start = np.zeros(nx * ny + 1, np.int64)
+    for k in range(n):
+        cx = min(int((ref_x[k] - x0) / cell_m), nx - 1)
+        cy = min(int((ref_y[k] - y0) / cell_m), ny - 1)
+        key[k] = cy * nx + cx
+        start[key[k] + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    order = np.empty(n, np.int64)
+    fill = start[:-1].copy()
+    for k in range(n):
+        order[fill[key[k]]] = k
+        fill[key[k]] += 1
+    for q in range(query_x.shape[0]):
+        qx = query_x[q]
+        qy = query_y[q]
+        qcx = int(math.floor((qx - x0) / cell_m))
+        qcy = int(math.floor((qy - y0) / cell_m))
+        # Beyond this ring every cell of the grid has been visited.
+        last_ring = max(max(qcx, nx - 1 - qcx), max(qcy, ny - 1 - qcy))
+        best_d2 = math.inf
+        best = -1
+        r = 0
+        while True:
+            for cy in range(max(qcy - r, 0), min(qcy + r, ny - 1) + 1):
+                on_edge_row = cy == qcy - r or cy == qcy + r
+                step = 1 if on_edge_row else 2 * r
+                for cx in range(qcx - r, qcx + r + 1, step):
+                    if 0 <= cx < nx:
+                        c = cy * nx + cx
+                        for s in range(start[c], start[c + 1]):
+                            k = order[s]
+                            dx = ref_x[k] - qx
+                            dy = ref_y[k] - qy
+                            d2 = dx * dx + dy * dy
+                            if d2 < best_d2 or (d2 == best_d2 and k < best):
+                                best_d2 = d2
+                                best = k
+            gap = r * cell_m
+            if (best >= 0 and best_d2 < gap * gap) or r >= last_ring:
+                break
+            r += 1
+        out[q] = best
+    return out
+
+
+@njit(cache=True)
+def distances_to_surface(ref_x, ref_y, normal_x, normal_y, query_x, query_y, cell_m):
+    """For each query point, its distance to the surface through its nearest reference point
+    (point to line: along that point's unit normal; NaN where the point has none)."""
+    nearest = nearest_points(ref_x, ref_y, query_x, query_y, cell_m)
+    out = np.empty(query_x.shape[0], np.float64)
+    for q in range(query_x.shape[0]):
+        k = nearest[q]
+        if k < 0:
+            out[q] = np.nan
+        else:
+            out[q] = abs((query_x[q] - ref_x[k]) * normal_x[k] + (query_y[q] - ref_y[k]) * normal_y[k])
+    return out

@@ -13,6 +13,7 @@ import dataclasses
 import numpy as np
 
 from firmware import kernels
+from firmware.services.motion import scan_points, travel_share_seen
 from firmware.params import ExplorationParams
 from firmware.services.grid_paths import GridPaths
 from firmware.services.known_map import KnownMap, find_frontiers
@@ -49,6 +50,9 @@ def warm_up(params: ExplorationParams) -> None:
     known.frontiers()
     # A scan matched to the map (when scan_match is on).
     ScanMatcher(small).match(local_map, 0.0, 0.0, 0.0, -np.pi, 2 * np.pi / _BEAMS, ranges_m, 10.0)
+    # The slip check: a scan laid over the one before it.
+    points = scan_points(-np.pi, 2 * np.pi / _BEAMS, ranges_m, 10.0)
+    travel_share_seen(points, points, 0.05, 0.0, 0.0, 0.0)
     # A teammate's view, as Bayer & Faigl's presence rule casts it.
     ij, inside = local_map.cells_of(np.array([[1.0, 0.0]]))
     kernels.mark_visible(layers.sight, ij[inside, 0], ij[inside, 1], small.team_view_rays,

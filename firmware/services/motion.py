@@ -7,8 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial import cKDTree
-
+from firmware import kernels
 from firmware.params import ExplorationParams
 
 
@@ -113,6 +112,7 @@ SLIP_MISFIT_CAP_M = 0.2
 SLIP_SURFACE_GAP_M = 0.3         # neighbouring hits farther apart are no surface
 SLIP_SEEN_SHARE = 0.5            # slipping: the best share is at most this ...
 SLIP_CLEAR_FIT = 0.7             # ... and its mean misfit at most this much of the full travel's
+SLIP_NEAREST_CELL_M = 0.2        # the nearest-point search's cells: a few hits each at a few metres
 
 
 class StallDetector:
@@ -196,17 +196,17 @@ def travel_share_seen(ref_points: np.ndarray, points: np.ndarray, dx_m: float, d
     turn = _wrap(yaw_rad - ref_yaw_rad)
     ct, st = math.cos(turn), math.sin(turn)
     turned = points @ np.array([[ct, st], [-st, ct]])                    # rotated into it
-    tree = cKDTree(ref_points)
     normals = surface_normals(ref_points)
-    misfit = np.empty(len(SLIP_SHARES))
-    for k, share in enumerate(SLIP_SHARES):
-        moved = turned + share * travel
-        _, nearest = tree.query(moved)
-        along_normal_m = np.abs(np.einsum("ij,ij->i", moved - ref_points[nearest], normals[nearest]))
-        on_surface = ~np.isnan(along_normal_m)
-        if np.count_nonzero(on_surface) < SLIP_MIN_BEAMS:
-            return None
-        misfit[k] = np.minimum(along_normal_m[on_surface], SLIP_MISFIT_CAP_M).mean()
+    moved = (turned[None, :, :] + SLIP_SHARES[:, None, None] * travel).reshape(-1, 2)     # by share
+    along_normal_m = kernels.distances_to_surface(
+        np.ascontiguousarray(ref_points[:, 0]), np.ascontiguousarray(ref_points[:, 1]),
+        np.ascontiguousarray(normals[:, 0]), np.ascontiguousarray(normals[:, 1]),
+        moved[:, 0].copy(), moved[:, 1].copy(), SLIP_NEAREST_CELL_M).reshape(len(SLIP_SHARES), -1)
+    on_surface = ~np.isnan(along_normal_m)
+    if (np.count_nonzero(on_surface, axis=1) < SLIP_MIN_BEAMS).any():
+        return None
+    capped_m = np.minimum(along_normal_m, SLIP_MISFIT_CAP_M)
+    misfit = np.array([capped_m[k][on_surface[k]].mean() for k in range(len(SLIP_SHARES))])
     best = int(np.argmin(misfit))
     if misfit[best] > SLIP_CLEAR_FIT * misfit[-1]:
         return None
