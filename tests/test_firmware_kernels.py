@@ -453,3 +453,17 @@ def test_crack_contours_matches_reference(state):
     expected = ref.crack_contours(free, occupied)
     for g, e in zip(got, expected):
         np.testing.assert_array_equal(g, e)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_nearest_points_matches_a_brute_force_search(seed):
+    """The slip check's nearest-point search against every distance computed (lowest index
+    on a tie), queries inside and far outside the reference points' cells included."""
+    rng = np.random.default_rng(seed)
+    for _ in range(20):
+        ref = rng.normal(0.0, rng.uniform(0.1, 8.0), (int(rng.integers(1, 300)), 2))
+        query = rng.normal(0.0, rng.uniform(0.1, 15.0), (int(rng.integers(1, 300)), 2))
+        got = kernels.nearest_points(ref[:, 0].copy(), ref[:, 1].copy(), query[:, 0].copy(), query[:, 1].copy(),
+                                     float(rng.uniform(0.05, 1.0)))
+        d2 = ((query[:, None, :] - ref[None, :, :]) ** 2).sum(axis=2)
+        assert np.array_equal(got, np.argmin(d2, axis=1))
