@@ -52,7 +52,7 @@ from world_sim.devices.dwm1001_emulator import Dwm1001Emulator
 from world_sim.devices.odrive_emulator import OdriveAxes, WorldDiffDrive
 from world_sim.devices.rplidar_emulator import RplidarEmulator
 from world_sim.map_spec import resolve_map
-from world_sim.ros_map import reachable_free
+from world_sim.ros_map import reachable_from_starts
 from world_sim.world import World, WorldParams
 
 CAN_INTERFACE = "udp_multicast"
@@ -134,7 +134,7 @@ class HilWorld:
         self.start_poses = start_poses(occ, map_start, settings.starts, settings.robots)
         params = settings.world_params
         self.world = World(occ, self.start_poses, settings.seed, params)
-        self.reachable = _reachable_from(occ, self.start_poses, params.robot_radius_m)
+        self.reachable = reachable_from_starts(occ, self.start_poses, params.robot_radius_m)
         self.channel = Channel(settings.profile, settings.seed, occupancy=occ)
         for i in range(settings.robots):
             # The modem bank's service thread may ask for a position while this thread steps
@@ -284,15 +284,6 @@ class HilWorld:
                            for i in range(w.n_robots)],
                 "air": self.channel.counters(), "loop": self.stats.to_json()}
 
-
-def _reachable_from(occ, poses: Sequence, robot_radius_m: float) -> np.ndarray:
-    """The free area the bodies can reach from any start (host_tools.mission scores the same)."""
-    reachable = reachable_free(occ, poses[0][:2], connectivity=4, robot_radius_m=robot_radius_m)
-    for x, y, _ in poses[1:]:
-        row, col = occ.cell_of(x, y)
-        if not reachable[row, col]:
-            reachable |= reachable_free(occ, (x, y), connectivity=4, robot_radius_m=robot_radius_m)
-    return reachable
 
 
 def _refuse_a_busy_bus(bus: can.BusABC, nodes: Sequence[int], channel: str) -> None:

@@ -34,7 +34,7 @@ from radio_sim.channel import Channel
 from radio_sim.virtual_modem import open_serial_radios
 from world_sim.devices.lockstep import open_serial_sensors
 from world_sim.map_spec import Pose, resolve_map, staging_poses
-from world_sim.ros_map import reachable_free
+from world_sim.ros_map import reachable_from_starts
 from world_sim.world import World, WorldParams
 
 COVERAGE_SAMPLE_US = 1_000_000
@@ -223,8 +223,8 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     world = World(occ, poses, cfg.seed, world_params)
     # Scored against the free area a robot body can reach from the starts (see reachable_free);
     # the figure against the raw 4-connected free component is reported too.
-    reachable = _reachable_from(occ, poses, robot_radius_m=world_params.robot_radius_m)
-    reachable_raw = _reachable_from(occ, poses)
+    reachable = reachable_from_starts(occ, poses, robot_radius_m=world_params.robot_radius_m)
+    reachable_raw = reachable_from_starts(occ, poses)
     profile = radio_profile(cfg.radio)
     channel = Channel(profile, cfg.seed, occupancy=occ, loss_rule=loss_rule)
     air_frames: list[AirFrame] = []
@@ -333,17 +333,6 @@ def start_poses(occ, map_start: Pose, starts: tuple[tuple[float, float, float | 
     centre = poses[0] if poses else map_start
     return staging_poses(occ, centre, robots) if robots > 1 else [centre]
 
-
-def _reachable_from(occ, poses: list[Pose], robot_radius_m: float | None = None) -> np.ndarray:
-    """The union of the free components reachable from every start: robots given starts in
-    separate parts of a map explore all of them. Staging areas lie in one component, so for
-    them this is the first start's component."""
-    reachable = reachable_free(occ, poses[0][:2], connectivity=4, robot_radius_m=robot_radius_m)
-    for x, y, _ in poses[1:]:
-        row, col = occ.cell_of(x, y)
-        if not reachable[row, col]:
-            reachable |= reachable_free(occ, (x, y), connectivity=4, robot_radius_m=robot_radius_m)
-    return reachable
 
 
 def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air_frames, mesh, progress, profiler,

@@ -151,6 +151,18 @@ def reachable_free(
 _STANDING_POINTS = [(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)]
 
 
+def reachable_from_starts(occ, poses, robot_radius_m: float | None = None) -> np.ndarray:
+    """The union of the free components reachable from every start pose (x, y, ...): robots
+    given starts in separate parts of a map explore all of them. Staging areas lie in one
+    component, so for them this is the first start's component. Missions are scored on it."""
+    reachable = reachable_free(occ, poses[0][:2], connectivity=4, robot_radius_m=robot_radius_m)
+    for x, y, *_ in poses[1:]:
+        row, col = occ.cell_of(x, y)
+        if not reachable[row, col]:
+            reachable |= reachable_free(occ, (x, y), connectivity=4, robot_radius_m=robot_radius_m)
+    return reachable
+
+
 def body_fits(free: np.ndarray, radius_cells: float) -> np.ndarray:
     """Bool grid: free cells with a point (centre, side midpoint or corner) where a disc of
     radius_cells touches no wall cell (walls are whole cells, as the world's collision test
