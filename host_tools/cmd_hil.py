@@ -210,7 +210,9 @@ def format_report(r: dict) -> str:
         ticks = x["ticks"] or 0
         share = f"{x['worst_overrun_share'] * 100:.2f} %" if x["worst_overrun_share"] is not None else "-"
         overruns = ", ".join(f"{name} {n}" for name, n in x["task_overruns"].items() if n) or "none"
-        ended = f", exited at {x['exited_s']:.1f} s" if x.get("exited_s") is not None else ""
+        ended = (f", ticked from {x['started_s']:.1f} s to {x['ended_s']:.1f} s on the shared clock"
+                 if x.get("started_s") is not None and x.get("ended_s") is not None else "")
+        ended += f", exited at {x['exited_s']:.1f} s" if x.get("exited_s") is not None else ""
         signed = f", signed off: {x['sign_off']} in {x['sign_off_s']:.1f} s" if x.get("sign_off") else ""
         lines.append(f"robot {x['robot_id']:<9}{x['termination']} after {x['wall_s'] or 0:.1f} s{ended}{signed} "
                      f"(exit {x['exit_status']}): {ticks} ticks, {x['tick_overruns']} over 50 ms; task overruns "

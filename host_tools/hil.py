@@ -25,6 +25,12 @@ the emulated wheels by what the world's wheels did, lets the LiDAR and UWB emula
 the world measured and the modem bank resolve the air up to now, and broadcasts the axes'
 encoder estimates (every 10 ms) and heartbeats (every 100 ms). `serve` calls it every 10 ms
 of the wall clock.
+
+One clock for all: the world takes its epoch (a time.monotonic_ns() reading) once, when it has
+opened its devices; its time is the monotonic clock since then, and every robot's
+configuration gives that epoch to the robot's clock (`[clock] epoch_ns`), so the robot
+processes and the world read the same time, the robots tick on the same 50 ms grid, and their
+TDMA slots line up as in the lockstep simulator.
 """
 from __future__ import annotations
 
@@ -148,6 +154,7 @@ class HilWorld:
         except BaseException:
             self.close()
             raise
+        self.epoch_ns = time.monotonic_ns()       # the world's (and every robot's) time zero
         self._next_estimates_us = 0
         self._next_heartbeats_us = 0
 
@@ -209,13 +216,16 @@ class HilWorld:
             self.axes.broadcast_heartbeats()
             self._next_heartbeats_us = _next_slot(self._next_heartbeats_us, world.now_us, HEARTBEAT_PERIOD_US)
 
+    def now_us(self) -> int:
+        """The shared clock: microseconds since the world's epoch."""
+        return (time.monotonic_ns() - self.epoch_ns) // 1000
+
     def serve(self, should_stop: Callable[[int], bool]) -> float:
-        """Follow the wall clock from now until should_stop(now_us) is true (asked every
-        loop); returns the wall time served, in seconds."""
-        t0_ns = time.monotonic_ns()
-        slot_us = 0
+        """Follow the wall clock (now_us) from now until should_stop(now_us) is true (asked
+        every loop); returns the time it stopped at, in seconds since the world's epoch."""
+        slot_us = self.now_us()
         while True:
-            now_us = (time.monotonic_ns() - t0_ns) // 1000
+            now_us = self.now_us()
             lag_us = now_us - slot_us
             self.stats.loops += 1
             self.stats.late_loops += lag_us >= LATE_US
@@ -223,8 +233,8 @@ class HilWorld:
             self.advance_to(now_us)
             if should_stop(now_us):
                 return now_us / 1e6
-            slot_us = _next_slot(slot_us, (time.monotonic_ns() - t0_ns) // 1000, SERVE_PERIOD_US)
-            remaining_us = slot_us - (time.monotonic_ns() - t0_ns) // 1000
+            slot_us = _next_slot(slot_us, self.now_us(), SERVE_PERIOD_US)
+            remaining_us = slot_us - self.now_us()
             if remaining_us > 0:
                 time.sleep(remaining_us / 1e6)
 
@@ -241,7 +251,7 @@ class HilWorld:
                      "right_direction": g.right_direction}
         tables = {
             "robot": {"id": robot_index, "team_size": s.robots, "scheme": s.scheme, "radio_profile": s.profile.name},
-            "clock": {"backend": "monotonic"},
+            "clock": {"backend": "monotonic", "epoch_ns": self.epoch_ns},
             "lidar": {"backend": "rplidar", "port": self.lidars[robot_index].path, "beams": p.lidar_beams,
                       "range_max_m": p.lidar_range_m},
             "odometry": {**can_table, "start_x_m": x, "start_y_m": y, "start_yaw_deg": math.degrees(yaw)},
@@ -372,7 +382,9 @@ class RobotRun:
         tick_overruns = r.get("tick", {}).get("overruns", 0)
         worst = max([tick_overruns, *task_overruns.values()], default=0)
         return {"robot_id": self.index, "exit_status": self.exit_status, "termination": r.get("termination"),
-                "status": r.get("status"), "wall_s": r.get("wall_s"), "exited_s": self.exited_s,
+                "status": r.get("status"), "wall_s": r.get("wall_s"),
+                # The robot's tick loop, and the process's end as the world saw it, on the shared clock.
+                "started_s": r.get("started_s"), "ended_s": r.get("ended_s"), "exited_s": self.exited_s,
                 "sign_off": r.get("sign_off"), "sign_off_s": r.get("sign_off_s"), "ticks": ticks,
                 "ticks_skipped": r.get("ticks_skipped"), "tick_overruns": tick_overruns,
                 "task_overruns": task_overruns,

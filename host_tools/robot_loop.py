@@ -2,9 +2,12 @@
 
 Every tick period (the fastest task's period, 50 ms) the loop sleeps until the tick is due,
 moves what follows the wall clock (a simulated world run in real time) to now, and runs the
-firmware's due tasks. Ticks keep their grid: a tick that ends after the next one was due
-starts the next one at once, and skips the slots that passed entirely (counted), as the
-scheduler skips a late task's missed periods.
+firmware's due tasks. Ticks fall on multiples of the tick period of the clock (the first one
+on the first multiple not before the loop starts), so robots whose clocks share an epoch
+([clock] epoch_ns) tick together and their TDMA slots, cut from the same clock, line up. Ticks
+keep that grid: a tick that ends after the next one was due starts the next one at once, and
+skips the slots that passed entirely (counted), as the scheduler skips a late task's missed
+periods.
 
 Every task run is timed on the wall clock and compared with the task's time budget
 (firmware.scheduler.Task.time_budget_us: its period, unless the task table declares less);
@@ -95,6 +98,8 @@ class OverrunProfiler:
 class LoopResult:
     termination: str = "running"   # "complete", "time_limit", or what should_stop() said ("SIGTERM")
     wall_s: float = 0.0
+    started_s: float | None = None  # when the loop started and ended, on the robot's clock (the shared
+    ended_s: float | None = None    # clock of a team whose clocks have one epoch)
     # How the sign-off went: None (not complete, or not yet), "sent" (the heartbeat left the
     # air), "timed_out" (it had not after SIGN_OFF_FRAMES), "no_radio".
     sign_off: str | None = None
@@ -109,6 +114,7 @@ class LoopResult:
 
     def to_json(self) -> dict:
         return {"termination": self.termination, "wall_s": round(self.wall_s, 3),
+                "started_s": _rounded(self.started_s), "ended_s": _rounded(self.ended_s),
                 "sign_off": self.sign_off, "sign_off_s": round(self.sign_off_s, 3), "ticks": self.ticks,
                 "ticks_skipped": self.ticks_skipped, "tick": self.tick.to_json(),
                 "tasks": {name: t.to_json() for name, t in self.tasks.items()}}
@@ -144,7 +150,9 @@ class RobotLoop:
         """Tick until the mission is complete, max_s has passed or should_stop() gives a
         reason; the result's termination says which."""
         clock, result = self.clock, self.result
-        self._start_us = next_tick_us = clock.now_us()
+        self._start_us = clock.now_us()
+        result.started_s = self._start_us / 1e6
+        next_tick_us = -(-self._start_us // self.tick_us) * self.tick_us    # the first multiple from now on
         next_log_us = self._start_us + self.log_every_us
         try:
             while not (reason := self._reason_to_stop(should_stop, max_s)):
@@ -159,7 +167,9 @@ class RobotLoop:
                     next_log_us += ((clock.now_us() - next_log_us) // self.log_every_us + 1) * self.log_every_us
             result.termination = reason
         finally:
-            result.wall_s = (clock.now_us() - self._start_us) / 1e6
+            ended_us = clock.now_us()
+            result.ended_s = ended_us / 1e6
+            result.wall_s = (ended_us - self._start_us) / 1e6
         return result
 
     def _tick(self) -> None:
@@ -227,3 +237,7 @@ def next_tick(due_us: int, now_us: int, tick_us: int) -> tuple[int, int]:
     next_us = due_us + tick_us
     skipped = max(0, (now_us - next_us) // tick_us)
     return next_us + skipped * tick_us, skipped
+
+
+def _rounded(seconds: float | None) -> float | None:
+    return None if seconds is None else round(seconds, 3)
