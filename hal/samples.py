@@ -61,20 +61,29 @@ class DriveLimits:
 
 @dataclass(frozen=True)
 class UwbRange:
-    """Two-way ranging result to another robot's UWB tag."""
+    """Two-way ranging result to another robot's UWB tag. `quality`: the module's quality
+    factor of this range (a DWM1001 reports 0..100), None where the backend has none."""
 
     stamp_us: int
     peer_id: int
     range_m: float
+    quality: int | None = None
 
 
 @dataclass(frozen=True)
 class AoaBearing:
-    """Angle of arrival of another robot's WiFi packets, in this robot's frame."""
+    """Angle of arrival of another robot's WiFi packets, in this robot's frame.
+
+    A sensor that reports several peaks of its angular profile for one packet (as the WSR
+    toolbox's top-N) gives them as samples with one stamp, `rank` 0 the strongest;
+    `profile_variance` is the sensor's spread of that profile (higher behind walls), None
+    where it has none."""
 
     stamp_us: int
     peer_id: int
     bearing_rad: float
+    profile_variance: float | None = None
+    rank: int = 0
 
 
 @dataclass(frozen=True)

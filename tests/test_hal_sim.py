@@ -23,6 +23,7 @@ from hal.sim.uwb import SimUwbRanger
 from tests.doubles import room
 from world_sim.occupancy_map import OccupancyMap
 from world_sim.raycast import cast_rays, mark_observed
+from world_sim.sensing import REALISTIC
 from world_sim.world import World, WorldParams
 
 # Cheap sensors for tests that only need motion or radios.
@@ -263,7 +264,12 @@ def test_odometry_drift_grows_with_distance_and_is_unbiased():
 
 def test_uwb_ranges_los_nlos_and_limit():
     occ = divided_room()
-    params = dataclasses.replace(QUIET, uwb_rate_hz=20.0, uwb_range_max_m=12.0)
+    # The realistic profile's LOS noise and NLOS bias, without its outliers, spread and dropouts
+    # (tests/test_sim_sensing.py tests those).
+    model = dataclasses.replace(REALISTIC.uwb, rate_hz=20.0, range_max_m=12.0, outlier_prob_los=0.0,
+                              outlier_prob_nlos=0.0, nlos_extra_std_m=0.0, nlos_extra_std_per_wall_m=0.0,
+                              detection_decay_per_wall_m=0.0)
+    params = dataclasses.replace(QUIET, sensing=dataclasses.replace(REALISTIC, uwb=model))
     # 0 and 1 see each other; 2 is behind the 0.4 m wall from 0; 3 is out of range of 0.
     poses = [(6.0, 5.05, 0.0), (2.0, 8.05, 1.0), (14.0, 5.05, 0.0), (19.0, 1.0, 0.0)]
     world = World(occ, poses, seed=11, params=params)
@@ -278,13 +284,14 @@ def test_uwb_ranges_los_nlos_and_limit():
     los_err = by_peer[1] - 5.0
     nlos_err = by_peer[2] - 8.0
     assert abs(los_err.mean()) < 0.01 and 0.04 < los_err.std() < 0.06
-    expected_bias = params.uwb_nlos_bias_m + params.uwb_nlos_bias_per_wall_m * 0.4
+    expected_bias = model.nlos_bias_m + model.nlos_bias_per_wall_m * 0.4
     assert nlos_err.mean() == pytest.approx(expected_bias, abs=0.01)
     assert nlos_err.mean() > 0.3
 
 
 def test_aoa_bearings_and_outlier_rate():
-    params = dataclasses.replace(QUIET, aoa_rate_hz=100.0)
+    model = dataclasses.replace(REALISTIC.aoa, rate_hz=100.0)
+    params = dataclasses.replace(QUIET, sensing=dataclasses.replace(REALISTIC, aoa=model))
     occ = room(20.0, 20.0)
     # Robot 0 faces +x; robot 1 is to its left (+90 deg), robot 2 behind it (-180 deg).
     world = World(occ, [(10.0, 10.0, 0.0), (10.0, 15.0, 0.0), (4.0, 10.0, 0.0)], seed=21, params=params)
@@ -298,12 +305,12 @@ def test_aoa_bearings_and_outlier_rate():
     b = np.array([x.bearing_rad for x in bearings])
     assert np.all((b >= -math.pi) & (b < math.pi))
     err = np.array([math.remainder(x.bearing_rad - truth[x.peer_id], 2 * math.pi) for x in bearings])
-    far = np.abs(err) > 5 * params.aoa_noise_std_rad
-    # An outlier lands within 5 sigma of the truth with probability 0.5 / (2 pi).
-    expected = params.aoa_outlier_prob * (1 - 10 * params.aoa_noise_std_rad / (2 * math.pi))
+    far = np.abs(err) > 5 * model.los_noise_std_rad
+    # An outlier lands within 5 sigma of the truth with probability 10 sigma / (2 pi).
+    expected = model.los_outlier_prob * (1 - 10 * model.los_noise_std_rad / (2 * math.pi))
     sigma = math.sqrt(expected * (1 - expected) / len(err))
     assert abs(far.mean() - expected) < 4 * sigma
-    assert np.std(err[~far]) == pytest.approx(params.aoa_noise_std_rad, rel=0.1)
+    assert np.std(err[~far]) == pytest.approx(model.los_noise_std_rad, rel=0.1)
 
 
 # --- determinism ----------------------------------------------------------------------------

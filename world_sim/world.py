@@ -6,7 +6,10 @@ grids (a LiDAR at 10 Hz scans at 0, 100 000, 200 000 us, ...); a step is split a
 measurement so each one sees the true poses of all robots at its own time stamp.
 
 Randomness: robot i's LiDAR noise comes only from `stream(seed, "lidar", i)`, its
-odometry drift from "odometry", its UWB ranges from "uwb", its AoA bearings from "aoa".
+odometry drift from "odometry", its UWB ranges from "uwb", its AoA bearings from "aoa";
+UWB and AoA take a fixed number of draws for every peer at every firing, whatever the
+profile and the outcome (world_sim.sensing), so a rate of outliers or dropouts never shifts
+a later number. What UWB and AoA measure is WorldParams.sensing, a named profile.
 Robot ids on the HAL (UwbRange.peer_id, AoaBearing.peer_id) are the robot indices.
 
 Coverage is ground truth: each scan marks the cells its beams crossed, computed from the
@@ -25,6 +28,7 @@ from world_sim.kinematics import BodyState, ClearanceMap, advance_all, wrap_angl
 from world_sim.occupancy_map import OccupancyMap
 from world_sim.raycast import cast_and_mark_all, pair_wall_lengths_m
 from world_sim.seeding import stream
+from world_sim.sensing import AOA_DRAWS, REALISTIC, UWB_DRAWS, SensingProfile, sensing_profile
 
 # Measurements a robot has not collected are dropped oldest first beyond this many.
 MAX_PENDING_MEASUREMENTS = 1024
@@ -56,42 +60,36 @@ class WorldParams:
     odom_yaw_drift_per_m: float = 0.0002
     odom_speed_noise_frac: float = 0.01  # relative std of the reported v and omega (encoder scale)
     wheel_slip_frac: float = 0.0         # WHEEL_SLIP_HELP
-    uwb_noise_std_m: float = 0.05
-    # NLOS: when the straight path between two robots crosses any wall, the first path
-    # arrives late: a fixed uwb_nlos_bias_m plus uwb_nlos_bias_per_wall_m per metre of wall
-    # crossed (excess delay of a dielectric with relative permittivity ~5: sqrt(5) - 1 = 1.24).
-    uwb_nlos_bias_m: float = 0.3
-    uwb_nlos_bias_per_wall_m: float = 1.2
-    uwb_range_max_m: float = 50.0
-    uwb_rate_hz: float = 2.0
-    aoa_noise_std_rad: float = 0.05
-    aoa_outlier_prob: float = 0.05       # multipath: the bearing is uniformly random
-    aoa_range_max_m: float = 50.0
-    aoa_rate_hz: float = 2.0
+    # What the UWB ranger and the WiFi AoA sensor measure: a named profile of world_sim.sensing
+    # (SENSING_PROFILE_HELP; sensing_profile() gives one by name).
+    sensing: SensingProfile = REALISTIC
     collision_spacing_m: float = 0.01    # arc sampling for the swept-disc collision check
 
     def __post_init__(self) -> None:
+        if not isinstance(self.sensing, SensingProfile):
+            raise ValueError(f"WorldParams.sensing must be a world_sim.sensing.SensingProfile, got {self.sensing!r}")
         for f in fields(self):
+            if f.name == "sensing":
+                continue
             value = getattr(self, f.name)
             if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
                 raise ValueError(f"WorldParams.{f.name} must be a finite number, got {value!r}")
             if value < 0:
                 raise ValueError(f"WorldParams.{f.name} must be >= 0, got {value!r}")
-        for name in ("robot_radius_m", "lidar_range_m", "lidar_rate_hz", "uwb_rate_hz", "aoa_rate_hz",
-                     "collision_spacing_m"):
+        for name in ("robot_radius_m", "lidar_range_m", "lidar_rate_hz", "collision_spacing_m"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"WorldParams.{name} must be > 0, got {getattr(self, name)!r}")
         if not isinstance(self.lidar_beams, int) or self.lidar_beams < 1:
             raise ValueError(f"WorldParams.lidar_beams must be a positive integer, got {self.lidar_beams!r}")
-        for name in ("aoa_outlier_prob", "wheel_slip_frac"):
-            if getattr(self, name) > 1:
-                raise ValueError(f"WorldParams.{name} must be in [0, 1], got {getattr(self, name)!r}")
+        if self.wheel_slip_frac > 1:
+            raise ValueError(f"WorldParams.wheel_slip_frac must be in [0, 1], got {self.wheel_slip_frac!r}")
         if not isinstance(self.lidar_phase_us, int) or self.lidar_phase_us >= round(1e6 / self.lidar_rate_hz):
             raise ValueError(f"WorldParams.lidar_phase_us must be a whole number of microseconds below the LiDAR's "
                              f"period ({round(1e6 / self.lidar_rate_hz)} us), got {self.lidar_phase_us!r}")
-        for name in ("lidar_rate_hz", "uwb_rate_hz", "aoa_rate_hz"):
-            if round(1e6 / getattr(self, name)) < 1:
-                raise ValueError(f"WorldParams.{name} = {getattr(self, name)!r} is faster than 1 MHz")
+        for name, rate_hz in (("lidar_rate_hz", self.lidar_rate_hz), ("sensing.uwb.rate_hz", self.sensing.uwb.rate_hz),
+                              ("sensing.aoa.rate_hz", self.sensing.aoa.rate_hz)):
+            if round(1e6 / rate_hz) < 1:
+                raise ValueError(f"WorldParams.{name} = {rate_hz!r} is faster than 1 MHz")
 
     def with_slip_and_lidar_phase(self, wheel_slip_frac: float, lidar_phase_ms: float) -> WorldParams:
         """These parameters with wheel_slip_frac and a LiDAR phase given in milliseconds (as
@@ -102,13 +100,17 @@ class WorldParams:
     def lidar_period_us(self) -> int:
         return round(1e6 / self.lidar_rate_hz)
 
+    def with_sensing_profile(self, name: str) -> WorldParams:
+        """These parameters with the sensing profile of that name (world_sim.sensing.SENSING_PROFILES)."""
+        return replace(self, sensing=sensing_profile(name))
+
     @property
     def uwb_period_us(self) -> int:
-        return round(1e6 / self.uwb_rate_hz)
+        return round(1e6 / self.sensing.uwb.rate_hz)
 
     @property
     def aoa_period_us(self) -> int:
-        return round(1e6 / self.aoa_rate_hz)
+        return round(1e6 / self.sensing.aoa.rate_hz)
 
     @property
     def lidar_angle_min_rad(self) -> float:
@@ -170,6 +172,8 @@ class World:
         self._rng_odom = [stream(seed, "odometry", i) for i in range(n)]
         self._rng_uwb = [stream(seed, "uwb", i) for i in range(n)]
         self._rng_aoa = [stream(seed, "aoa", i) for i in range(n)]
+        self._walls = np.zeros((n, n))
+        self._walls_us = -1
         p = params
         self._beam_angles = p.lidar_angle_min_rad + np.arange(p.lidar_beams) * p.lidar_angle_increment_rad
         self._periods = (p.lidar_period_us, p.uwb_period_us, p.aoa_period_us)
@@ -305,46 +309,60 @@ class World:
                 ranges_m=measured[i],
             )
 
+    def _pair_walls(self) -> np.ndarray:
+        """Metres of wall on the straight line between every ordered pair of robots now
+        (0 on the diagonal and for pairs beyond both sensors' reach). UWB and AoA firing at
+        the same time share one computation."""
+        if self._walls_us != self.now_us:
+            s = self.params.sensing
+            occ = self.occ
+            # One metre beyond the reach, so that the sensors' exact test decides who is in range.
+            within_m = max(s.uwb.range_max_m, s.aoa.range_max_m) + 1.0
+            walls = pair_wall_lengths_m(self._wall, occ.origin_x_m, occ.origin_y_m, occ.resolution_m,
+                                        self._pose, within_m)
+            self._walls = np.nan_to_num(walls, nan=0.0)
+            self._walls_us = self.now_us
+        return self._walls
+
+    def _peer_geometry(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Robot i's peers (every other robot, in index order), their true distances and the
+        metres of wall between."""
+        peers = np.array([j for j in range(self.n_robots) if j != i], dtype=np.int64)
+        dx = self._pose[peers, 0] - self._pose[i, 0]
+        dy = self._pose[peers, 1] - self._pose[i, 1]
+        return peers, np.hypot(dx, dy), self._pair_walls()[i, peers]
+
     def _fire_uwb(self) -> None:
-        p = self.params
-        occ = self.occ
-        # One metre beyond the range, so that the exact test below decides who is in range.
-        wall_m = pair_wall_lengths_m(self._wall, occ.origin_x_m, occ.origin_y_m, occ.resolution_m,
-                                     self._pose, p.uwb_range_max_m + 1.0)
+        model = self.params.sensing.uwb
+        k = self.n_robots - 1
         for i in range(self.n_robots):
-            xi, yi, _ = self._pose[i]
-            peers = [j for j in range(self.n_robots)
-                     if j != i and math.hypot(self._pose[j, 0] - xi, self._pose[j, 1] - yi) <= p.uwb_range_max_m]
-            # One draw per peer in range, in the peers' order: the same stream as drawing them one by one.
-            noise = self._rng_uwb[i].standard_normal(len(peers))
+            peers, d, wall_m = self._peer_geometry(i)
+            # The same draws for every peer at every firing, measured or not (world_sim.sensing).
+            rng = self._rng_uwb[i]
+            u = rng.random((k, UWB_DRAWS))
+            z = rng.standard_normal(k)
+            ranges, measured = model.measure(d, wall_m, u, z)
             out = self._uwb[i]
-            for j, z in zip(peers, noise):
-                d = math.hypot(self._pose[j, 0] - xi, self._pose[j, 1] - yi)
-                through_wall_m = wall_m[i, j]
-                bias = p.uwb_nlos_bias_m + p.uwb_nlos_bias_per_wall_m * through_wall_m if through_wall_m > 0 else 0.0
-                r = max(d + bias + p.uwb_noise_std_m * z, 0.0)
-                out.append(UwbRange(stamp_us=self.now_us, peer_id=j, range_m=float(r)))
+            for j, r, ok in zip(peers.tolist(), ranges.tolist(), measured.tolist()):
+                if ok:
+                    out.append(UwbRange(stamp_us=self.now_us, peer_id=j, range_m=r))
             del out[:-MAX_PENDING_MEASUREMENTS]
 
     def _fire_aoa(self) -> None:
-        p = self.params
+        model = self.params.sensing.aoa
+        k = self.n_robots - 1
         for i in range(self.n_robots):
+            peers, d, wall_m = self._peer_geometry(i)
             xi, yi, yaw_i = self._pose[i]
+            truth = np.arctan2(self._pose[peers, 1] - yi, self._pose[peers, 0] - xi) - yaw_i
             rng = self._rng_aoa[i]
+            u = rng.random((k, AOA_DRAWS))
+            z = rng.standard_normal(k)
+            bearings, measured = model.measure(truth, d, wall_m, u, z)
             out = self._aoa[i]
-            for j in range(self.n_robots):
-                if j == i:
-                    continue
-                xj, yj, _ = self._pose[j]
-                if math.hypot(xj - xi, yj - yi) > p.aoa_range_max_m:
-                    continue
-                # Always three draws per bearing, so an outlier never shifts later numbers.
-                u, z, w = rng.random(), rng.standard_normal(), rng.random()
-                if u < p.aoa_outlier_prob:
-                    bearing = wrap_angle(-math.pi + 2.0 * math.pi * w)
-                else:
-                    bearing = wrap_angle(math.atan2(yj - yi, xj - xi) - yaw_i + p.aoa_noise_std_rad * z)
-                out.append(AoaBearing(stamp_us=self.now_us, peer_id=j, bearing_rad=bearing))
+            for j, b, ok in zip(peers.tolist(), bearings.tolist(), measured.tolist()):
+                if ok:
+                    out.append(AoaBearing(stamp_us=self.now_us, peer_id=j, bearing_rad=b))
             del out[:-MAX_PENDING_MEASUREMENTS]
 
     # --- what the HAL backends read --------------------------------------------------------

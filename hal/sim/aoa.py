@@ -1,4 +1,6 @@
-"""Simulated WiFi angle of arrival of the other robots, in this robot's frame, [-pi, pi)."""
+"""Simulated WiFi angle of arrival of the other robots, in this robot's frame, [-pi, pi): noise,
+multipath outliers, dropouts and rate as WorldParams.sensing gives them (world_sim.sensing).
+One bearing per peer and sweep (rank 0, no profile variance)."""
 from __future__ import annotations
 
 from hal.config import BuildContext

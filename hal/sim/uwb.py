@@ -1,4 +1,6 @@
-"""Simulated UWB two-way ranging to the other robots (noise and NLOS bias: see WorldParams)."""
+"""Simulated UWB two-way ranging to the other robots: noise, NLOS bias and spread, outliers,
+dropouts, resolution and rate as WorldParams.sensing gives them (world_sim.sensing: the
+`paper` and `realistic` profiles)."""
 from __future__ import annotations
 
 from hal.config import BuildContext
