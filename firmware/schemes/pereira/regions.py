@@ -1,0 +1,480 @@
+"""The region graph as a pure function of the place and gate records held (pereira.md 5.2 c).
+
+Every robot contributes evidence as grow-only records: places where it drove, each with a
+disc its map certified FREE, and gates (narrowings) it saw whole. `fold(places, gates)`
+turns the SET of those records into regions, as TopoMap does for Bayer & Faigl: duplicates
+collapse, records are sorted by their wire values, and every decision after that is made
+in integers (decimetres, centimetres, a fixed integer cos/sin table), so two robots holding
+the same records hold the identical graph, bit for bit (`RegionGraph.digest`).
+
+1. Gates: in sorted order, a gate record within r_match (0.75 m) and 30 degrees of an
+   accepted gate folds into it; otherwise it is accepted. Its key is its (x_dm, y_dm,
+   dir_code); its half length the largest of the records folded into it. Its segment is the
+   centre +- (half + 0.15 m) along its direction, pushed into the jambs so edges cannot slip
+   past its ends.
+2. Place edges: p-q if q is p's link_back predecessor (the sender drove it), or if
+   |pq| <= min(d_connect, clear_p + clear_q): then the segment lies inside the union of
+   the two certified discs, so it crosses no wall the senders saw (wall-safe by
+   construction).
+3. An edge whose segment crosses an accepted gate's segment is cut (exact orientation tests
+   in cm; a point on the gate's line counts on its "+" side, the left of a -> b).
+4. Regions are the connected pieces of the uncut graph. A region's id is its anchor, the
+   smallest place key (x_dm, y_dm, sender, oseq) in it; its signature the CRC-16/MODBUS of
+   the sorted keys of the gates that cut an edge at one of its places. Adjacency: the two
+   regions at the ends of a cut edge, through that gate.
+5. Virtual regions V(g, s): the side s of gate g with no place within side_radius of the
+   gate, when the other side has one: the room behind a door seen, never entered. It is
+   adjacent, through g, to the region of the nearest place on the other side; its
+   signature is the CRC of g alone, and its anchor point lies 0.5 m beyond the gate.
+6. Visited (eq. 2) = the region has places: places are a grow-only set, so a visited
+   region stays visited.
+
+Not here yet: routing over the graph, the private label grid (5.2 d).
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import struct
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from firmware.comms.schema import crc16
+from firmware.schemes.pereira.params import PARAMS, PereiraParams
+from firmware.schemes.pereira.records import DIR_CODES, Gate, Place
+
+# ---- integer geometry -------------------------------------------------------------------
+
+TRIG_SHIFT = 14
+# cos and sin of code * pi / 256 in units of 2^-14: computed, then checked against their
+# CRC, so a machine whose libm rounds one entry differently fails here instead of folding a
+# different graph (the nearest entry to a rounding tie is 5e-4 of a unit away).
+COS_Q = np.array([round(math.cos(k * math.pi / DIR_CODES) * (1 << TRIG_SHIFT)) for k in range(DIR_CODES)], np.int64)
+SIN_Q = np.array([round(math.sin(k * math.pi / DIR_CODES) * (1 << TRIG_SHIFT)) for k in range(DIR_CODES)], np.int64)
+assert crc16(struct.pack(">256h", *COS_Q.tolist()) + struct.pack(">256h", *SIN_Q.tolist())) == 0x62B9, \
+    "integer trig table differs from the one every robot uses"
+
+# Columns of the sorted record arrays: the sort keys first.
+PLACE_COLUMNS = ("x_dm", "y_dm", "sender_id", "oseq", "clear_dm", "link_back")
+GATE_COLUMNS = ("x_dm", "y_dm", "dir_code", "half_2cm", "sender_id", "oseq")
+VIRTUAL_ANCHOR_DM = 5        # a virtual region's anchor point: this far beyond its gate
+
+REAL, VIRTUAL = 0, 1
+SIDE_PLUS, SIDE_MINUS = 0, 1
+
+
+def _q_mul(length: np.ndarray | int, table_value: np.ndarray | int):
+    """round(length * table / 2^14), the same integers everywhere."""
+    return (length * table_value + (1 << (TRIG_SHIFT - 1))) >> TRIG_SHIFT
+
+
+def orient(ax, ay, bx, by, cx, cy):
+    """Twice the signed area of (a, b, c): > 0 when c is left of a -> b. Integer inputs."""
+    return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+
+
+def crosses(px, py, qx, qy, ax, ay, bx, by):
+    """Does segment p-q cross gate segment a-b? p and q must lie on different sides of the
+    gate's line (a point on the line counts as "+"), and a and b on the closed segment's
+    two sides. Integer arrays or ints (cm), broadcast."""
+    sp = orient(ax, ay, bx, by, px, py) >= 0
+    sq = orient(ax, ay, bx, by, qx, qy) >= 0
+    oa = orient(px, py, qx, qy, ax, ay)
+    ob = orient(px, py, qx, qy, bx, by)
+    return (sp != sq) & (((oa <= 0) & (ob >= 0)) | ((oa >= 0) & (ob <= 0)))
+
+
+def near_segment(px, py, ax, ay, bx, by, r):
+    """Is point p within r of segment a-b? Exact in integers (arrays broadcast); the
+    coordinates' differences must stay below about 2^20 (the callers pass neighbours)."""
+    dx, dy = bx - ax, by - ay
+    ux, uy = px - ax, py - ay
+    t = ux * dx + uy * dy
+    ll = dx * dx + dy * dy
+    wx, wy = px - bx, py - by
+    cross = ux * dy - uy * dx
+    before = t <= 0
+    after = t >= ll
+    return np.where(before, ux * ux + uy * uy <= r * r,
+                    np.where(after, wx * wx + wy * wy <= r * r, cross * cross <= r * r * ll))
+
+
+def gate_key_bytes(keys: Iterable[tuple[int, int, int]]) -> bytes:
+    return b"".join(struct.pack(">hhB", x, y, d) for x, y, d in keys)
+
+
+def signature_of(keys: Iterable[tuple[int, int, int]]) -> int:
+    """CRC-16/MODBUS over gate keys in sorted order: a region's signature."""
+    return crc16(gate_key_bytes(sorted(keys)))
+
+
+# ---- the graph --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Region:
+    id: tuple[int, ...]          # (REAL, x_dm, y_dm, sender, oseq) of its anchor, or (VIRTUAL, gx, gy, gdir, side)
+    anchor_x_dm: int             # the anchor place, or the point 0.5 m beyond the gate
+    anchor_y_dm: int
+    signature: int
+    virtual: bool
+    places: tuple[int, ...]      # indices into RegionGraph.places (empty for a virtual region)
+
+    @property
+    def visited(self) -> bool:
+        """Eq. 2: some robot has been there (the region has places)."""
+        return not self.virtual
+
+
+@dataclass(frozen=True, eq=False)
+class RegionGraph:
+    """What `fold` derives. Arrays are canonical: equal inputs give equal arrays."""
+
+    places: np.ndarray           # int64 (n, 6) in PLACE_COLUMNS, sorted, unique
+    gate_records: np.ndarray     # int64 (m, 6) in GATE_COLUMNS, sorted, unique
+    gate_of_record: np.ndarray   # int64 (m,): the accepted gate each gate record folded into
+    gates: np.ndarray            # int64 (k, 4): x_dm, y_dm, dir_code, half_2cm of the accepted gates (key order)
+    segments_cm: np.ndarray      # int64 (k, 4): ax, ay, bx, by of each gate's segment
+    edges: np.ndarray            # int64 (e, 2): place index pairs u < v, sorted
+    edge_kind: np.ndarray        # uint8 (e,): 1 trajectory, 2 certified, 3 both
+    cuts: np.ndarray             # int64 (c, 2): (edge, gate) for every gate crossing an edge, sorted
+    region_of_place: np.ndarray  # int64 (n,): index into regions
+    regions: tuple[Region, ...]  # real regions by anchor, then virtual ones by (gate, side)
+    adjacency: tuple[tuple[int, int, int], ...]   # (region a, region b, gate), a < b, sorted, unique
+    params: PereiraParams = PARAMS
+
+    # ---- lookups ----
+    def gate_key(self, g: int) -> tuple[int, int, int]:
+        return int(self.gates[g, 0]), int(self.gates[g, 1]), int(self.gates[g, 2])
+
+    def region_index(self, region_id: tuple[int, ...]) -> int | None:
+        return self._index_of_id.get(region_id)
+
+    @property
+    def _index_of_id(self) -> dict[tuple[int, ...], int]:
+        cached = self.__dict__.get("_ids")
+        if cached is None:
+            cached = {r.id: k for k, r in enumerate(self.regions)}
+            object.__setattr__(self, "_ids", cached)
+        return cached
+
+    def neighbours(self, r: int) -> tuple[int, ...]:
+        return tuple(sorted({b if a == r else a for a, b, _g in self.adjacency if r in (a, b)}))
+
+    def is_cut(self) -> np.ndarray:
+        cut = np.zeros(len(self.edges), bool)
+        cut[self.cuts[:, 0]] = True
+        return cut
+
+    def partition(self) -> tuple[tuple[tuple[int, ...], tuple[tuple[int, ...], ...]], ...]:
+        """Each region's id with the keys of its places: what every robot must agree on."""
+        keys = [tuple(int(v) for v in row[:4]) for row in self.places]
+        return tuple((r.id, tuple(keys[i] for i in r.places)) for r in self.regions)
+
+    def digest(self) -> str:
+        """SHA-256 over everything derived, in canonical order."""
+        h = hashlib.sha256()
+        for a in (self.places, self.gate_records, self.gate_of_record, self.gates, self.segments_cm, self.edges,
+                  self.edge_kind, self.cuts, self.region_of_place):
+            h.update(str(a.shape).encode())
+            h.update(np.ascontiguousarray(a).astype(np.int64).tobytes())
+        h.update(repr(self.regions).encode())
+        h.update(repr(self.adjacency).encode())
+        return h.hexdigest()
+
+    # ---- claim resolution (5.3) ----
+    def resolve(self, x_dm: int, y_dm: int) -> int | None:
+        """The region a claim's anchor names in this graph, or None (pending): the place with
+        exactly that position; else the nearest place within resolve_radius whose segment to
+        the anchor crosses no gate (ties: lowest key); else the virtual region V(g, s) whose
+        gate lies within virtual_resolve of the anchor, the anchor on side s (nearest gate
+        centre, then lowest key)."""
+        p = self.params
+        x_dm, y_dm = int(x_dm), int(y_dm)
+        pl = self.places
+        if len(pl):
+            lo = np.searchsorted(self._xy_keys, x_dm * (1 << 17) + y_dm, "left")
+            if lo < len(pl) and pl[lo, 0] == x_dm and pl[lo, 1] == y_dm:
+                return int(self.region_of_place[lo])
+            r = p.resolve_radius_dm
+            near = self._place_tree.query_ball_point((x_dm, y_dm), r + 0.5)
+            if near:
+                near = np.array(sorted(near), np.int64)
+                d2 = (pl[near, 0] - x_dm) ** 2 + (pl[near, 1] - y_dm) ** 2
+                near, d2 = near[d2 <= r * r], d2[d2 <= r * r]
+                for k in near[np.lexsort((near, d2))]:
+                    if not self._segment_cut(int(pl[k, 0]) * 10, int(pl[k, 1]) * 10, x_dm * 10, y_dm * 10):
+                        return int(self.region_of_place[k])
+        best = None
+        for k, reg in enumerate(self.regions):
+            if not reg.virtual:
+                continue
+            g, side = self._virtual_gate[k]
+            ax, ay, bx, by = (int(v) for v in self.segments_cm[g])
+            on_plus = orient(ax, ay, bx, by, x_dm * 10, y_dm * 10) >= 0
+            if on_plus != (side == SIDE_PLUS):
+                continue
+            if not near_segment(x_dm * 10, y_dm * 10, ax, ay, bx, by, p.virtual_resolve_cm):
+                continue
+            d2 = (int(self.gates[g, 0]) - x_dm) ** 2 + (int(self.gates[g, 1]) - y_dm) ** 2
+            if best is None or (d2, reg.id) < best[0]:
+                best = ((d2, reg.id), k)
+        return None if best is None else best[1]
+
+    @property
+    def _xy_keys(self) -> np.ndarray:
+        cached = self.__dict__.get("_xy")
+        if cached is None:
+            cached = self.places[:, 0] * (1 << 17) + self.places[:, 1]
+            object.__setattr__(self, "_xy", cached)
+        return cached
+
+    @property
+    def _place_tree(self) -> cKDTree:
+        cached = self.__dict__.get("_tree")
+        if cached is None:
+            cached = cKDTree(self.places[:, :2].astype(np.float64))
+            object.__setattr__(self, "_tree", cached)
+        return cached
+
+    @property
+    def _virtual_gate(self) -> dict[int, tuple[int, int]]:
+        cached = self.__dict__.get("_vg")
+        if cached is None:
+            by_key = {self.gate_key(g): g for g in range(len(self.gates))}
+            cached = {k: (by_key[r.id[1:4]], r.id[4]) for k, r in enumerate(self.regions) if r.virtual}
+            object.__setattr__(self, "_vg", cached)
+        return cached
+
+    def _segment_cut(self, px: int, py: int, qx: int, qy: int) -> bool:
+        if not len(self.segments_cm):
+            return False
+        s = self.segments_cm
+        return bool(np.any(crosses(px, py, qx, qy, s[:, 0], s[:, 1], s[:, 2], s[:, 3])))
+
+
+# ---- the fold ---------------------------------------------------------------------------
+
+def _sorted_unique(rows: Iterable[tuple[int, ...]], columns: tuple[int, ...]) -> np.ndarray:
+    """The records as int64 rows with their fields in `columns` order, sorted
+    lexicographically, duplicates dropped."""
+    a = np.array([tuple(r) for r in rows], np.int64).reshape(-1, 6)[:, list(columns)]
+    if len(a) < 2:
+        return a
+    a = a[np.lexsort(a.T[::-1])]
+    keep = np.ones(len(a), bool)
+    keep[1:] = np.any(a[1:] != a[:-1], axis=1)
+    return a[keep]
+
+
+def _fold_gates(gr: np.ndarray, p: PereiraParams) -> tuple[np.ndarray, np.ndarray]:
+    """Accepted gates (x, y, dir, half) and the accepted gate of every record."""
+    accepted: list[list[int]] = []
+    of_record = np.empty(len(gr), np.int64)
+    r2 = p.r_match_dm ** 2
+    max_codes = p.r_match_codes
+    for i in range(len(gr)):
+        x, y, d, half = (int(v) for v in gr[i, :4])
+        hit = -1
+        for k, (ax, ay, ad, _h) in enumerate(accepted):
+            dd = abs(d - ad) % DIR_CODES
+            if (x - ax) ** 2 + (y - ay) ** 2 <= r2 and min(dd, DIR_CODES - dd) <= max_codes:
+                hit = k
+                break
+        if hit < 0:
+            hit = len(accepted)
+            accepted.append([x, y, d, half])
+        else:
+            accepted[hit][3] = max(accepted[hit][3], half)
+        of_record[i] = hit
+    return np.array(accepted, np.int64).reshape(-1, 4), of_record
+
+
+def gate_segments_cm(gates: np.ndarray, extension_cm: int) -> np.ndarray:
+    """ax, ay, bx, by (cm) of gates given as rows x_dm, y_dm, dir_code, half_2cm."""
+    cx, cy = gates[:, 0] * 10, gates[:, 1] * 10
+    ext = gates[:, 3] * 2 + extension_cm
+    ox, oy = _q_mul(ext, COS_Q[gates[:, 2]]), _q_mul(ext, SIN_Q[gates[:, 2]])
+    return np.stack([cx - ox, cy - oy, cx + ox, cy + oy], axis=1).astype(np.int64).reshape(-1, 4)
+
+
+def _edges(pl: np.ndarray, p: PereiraParams) -> tuple[np.ndarray, np.ndarray]:
+    """Place edges (u < v, sorted) and their kinds (bit 0 trajectory, bit 1 certified)."""
+    n = len(pl)
+    us, vs, ks = [], [], []
+    # Trajectory: the sender's previous place, link_back records before.
+    seq = pl[:, 2] * (1 << 16) + pl[:, 3]
+    order = np.argsort(seq, kind="stable")
+    back = np.flatnonzero(pl[:, 5] > 0)
+    want = pl[back, 2] * (1 << 16) + (pl[back, 3] - pl[back, 5]) % (1 << 16)
+    lo = np.searchsorted(seq[order], want, "left")
+    hi = np.searchsorted(seq[order], want, "right")
+    count = hi - lo
+    if count.sum():
+        src = np.repeat(back, count)
+        starts = np.repeat(lo, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
+        dst = order[starts]
+        us.append(src)
+        vs.append(dst)
+        ks.append(np.ones(len(src), np.uint8))
+    # Certified: inside the union of the two certified discs.
+    if n > 1:
+        r = p.d_connect_dm
+        pairs = cKDTree(pl[:, :2].astype(np.float64)).query_pairs(r + 0.5, output_type="ndarray").astype(np.int64)
+        if len(pairs):
+            u, v = pairs[:, 0], pairs[:, 1]
+            d2 = (pl[u, 0] - pl[v, 0]) ** 2 + (pl[u, 1] - pl[v, 1]) ** 2
+            reach = np.minimum(r, pl[u, 4] + pl[v, 4])
+            ok = d2 <= reach * reach
+            us.append(u[ok])
+            vs.append(v[ok])
+            ks.append(np.full(int(ok.sum()), 2, np.uint8))
+    if not us:
+        return np.zeros((0, 2), np.int64), np.zeros(0, np.uint8)
+    u, v, k = np.concatenate(us), np.concatenate(vs), np.concatenate(ks)
+    a, b = np.minimum(u, v), np.maximum(u, v)
+    code = a * n + b
+    order = np.argsort(code, kind="stable")
+    code, k = code[order], k[order]
+    if not len(code):
+        return np.zeros((0, 2), np.int64), np.zeros(0, np.uint8)
+    first = np.ones(len(code), bool)
+    first[1:] = code[1:] != code[:-1]
+    starts = np.flatnonzero(first)
+    kinds = np.bitwise_or.reduceat(k, starts).astype(np.uint8)
+    code = code[starts]
+    return np.stack([code // n, code % n], axis=1), kinds
+
+
+def _cuts(pl: np.ndarray, edges: np.ndarray, seg: np.ndarray) -> np.ndarray:
+    """(edge, gate) pairs whose segments cross, sorted."""
+    if not len(edges) or not len(seg):
+        return np.zeros((0, 2), np.int64)
+    px, py = pl[edges[:, 0], 0] * 10, pl[edges[:, 0], 1] * 10
+    qx, qy = pl[edges[:, 1], 0] * 10, pl[edges[:, 1], 1] * 10
+    half_len = np.hypot((qx - px).astype(np.float64), (qy - py).astype(np.float64)) / 2
+    gate_half = np.hypot((seg[:, 2] - seg[:, 0]).astype(np.float64), (seg[:, 3] - seg[:, 1]).astype(np.float64)) / 2
+    # Candidate pairs: the two segments' midpoints no farther apart than their half lengths
+    # (plus a margin); edges far longer than usual are checked against every gate.
+    long_edge = half_len > 200.0
+    short = np.flatnonzero(~long_edge)
+    pe, pg = [], []
+    if len(short):
+        mids = np.stack([(px + qx)[short] / 2, (py + qy)[short] / 2], axis=1)
+        tree = cKDTree(mids)
+        centres = np.stack([(seg[:, 0] + seg[:, 2]) / 2, (seg[:, 1] + seg[:, 3]) / 2], axis=1)
+        hits = tree.query_ball_point(centres, gate_half + float(half_len[short].max()) + 2.0)
+        for g, hs in enumerate(hits):
+            if hs:
+                pe.append(short[np.array(hs, np.int64)])
+                pg.append(np.full(len(hs), g, np.int64))
+    for e in np.flatnonzero(long_edge):
+        pe.append(np.full(len(seg), e, np.int64))
+        pg.append(np.arange(len(seg), dtype=np.int64))
+    if not pe:
+        return np.zeros((0, 2), np.int64)
+    e, g = np.concatenate(pe), np.concatenate(pg)
+    hit = crosses(px[e], py[e], qx[e], qy[e], seg[g, 0], seg[g, 1], seg[g, 2], seg[g, 3])
+    out = np.stack([e[hit], g[hit]], axis=1)
+    return out[np.lexsort((out[:, 1], out[:, 0]))] if len(out) else out.reshape(0, 2)
+
+
+def fold(places: Iterable[Place | tuple[int, ...]], gates: Iterable[Gate | tuple[int, ...]],
+         params: PereiraParams = PARAMS) -> RegionGraph:
+    """The region graph of a set of place and gate records (any order, duplicates allowed)."""
+    p = params
+    pl = _sorted_unique(places, (2, 3, 0, 1, 4, 5))      # PLACE_COLUMNS
+    gr = _sorted_unique(gates, (2, 3, 4, 5, 0, 1))       # GATE_COLUMNS
+    acc, gate_of_record = _fold_gates(gr, p)
+    # Accepted gates in key order (x, y, dir), so gate indices do not depend on fold order.
+    order = np.lexsort((acc[:, 2], acc[:, 1], acc[:, 0])) if len(acc) else np.zeros(0, np.int64)
+    rank = np.empty(len(order), np.int64)
+    rank[order] = np.arange(len(order))
+    acc = acc[order]
+    gate_of_record = rank[gate_of_record] if len(gate_of_record) else gate_of_record
+    seg = gate_segments_cm(acc, p.gate_extension_cm)
+    edges, kind = _edges(pl, p)
+    cuts = _cuts(pl, edges, seg)
+    n = len(pl)
+
+    # Regions: connected pieces of the uncut graph, numbered by their smallest place.
+    cut = np.zeros(len(edges), bool)
+    if len(cuts):
+        cut[cuts[:, 0]] = True
+    keep = edges[~cut]
+    if n:
+        graph = coo_matrix((np.ones(len(keep)), (keep[:, 0], keep[:, 1])), shape=(n, n))
+        _count, label = connected_components(graph, directed=False)
+        first = np.full(label.max() + 1, n, np.int64)
+        np.minimum.at(first, label, np.arange(n))
+        order_r = np.argsort(first, kind="stable")
+        new = np.empty(len(order_r), np.int64)
+        new[order_r] = np.arange(len(order_r))
+        region_of_place = new[label]
+    else:
+        region_of_place = np.zeros(0, np.int64)
+    n_real = int(region_of_place.max()) + 1 if n else 0
+    members: list[list[int]] = [[] for _ in range(n_real)]
+    for i, r in enumerate(region_of_place.tolist()):
+        members[r].append(i)
+    sig_gates: list[set[int]] = [set() for _ in range(n_real)]
+    adjacency: set[tuple[int, int, int]] = set()
+    for e, g in cuts.tolist():
+        ra, rb = int(region_of_place[edges[e, 0]]), int(region_of_place[edges[e, 1]])
+        sig_gates[ra].add(g)
+        sig_gates[rb].add(g)
+        if ra != rb:
+            adjacency.add((min(ra, rb), max(ra, rb), g))
+    keys = [(int(a[0]), int(a[1]), int(a[2])) for a in acc]
+    regions = []
+    for r in range(n_real):
+        a = members[r][0]
+        regions.append(Region((REAL, int(pl[a, 0]), int(pl[a, 1]), int(pl[a, 2]), int(pl[a, 3])),
+                              int(pl[a, 0]), int(pl[a, 1]), signature_of(keys[g] for g in sig_gates[r]), False,
+                              tuple(members[r])))
+
+    # Virtual regions behind gates with places on one side only.
+    virtual: list[tuple[tuple[int, ...], int, int, int]] = []   # (id, anchor x, anchor y, adjacent real region)
+    if n and len(acc):
+        tree = cKDTree(pl[:, :2].astype(np.float64) * 10)
+        r_cm = p.side_radius_cm
+        for g in range(len(acc)):
+            ax, ay, bx, by = (int(v) for v in seg[g])
+            cx, cy = int(acc[g, 0]) * 10, int(acc[g, 1]) * 10
+            reach = math.hypot(bx - ax, by - ay) / 2 + r_cm + 2.0
+            near = np.array(sorted(tree.query_ball_point((cx, cy), reach)), np.int64)
+            nearest = [None, None]      # per side: (d2 to the centre, place index)
+            if len(near):
+                px, py = pl[near, 0] * 10, pl[near, 1] * 10
+                ok = near_segment(px - cx, py - cy, ax - cx, ay - cy, bx - cx, by - cy, r_cm)
+                plus = orient(ax, ay, bx, by, px, py) >= 0
+                d2 = (px - cx) ** 2 + (py - cy) ** 2
+                for side, mask in ((SIDE_PLUS, ok & plus), (SIDE_MINUS, ok & ~plus)):
+                    if mask.any():
+                        idx = near[mask]
+                        k = np.lexsort((idx, d2[mask]))[0]
+                        nearest[side] = int(idx[k])
+            for side in (SIDE_PLUS, SIDE_MINUS):
+                other = nearest[1 - side]
+                if nearest[side] is not None or other is None:
+                    continue
+                d = int(acc[g, 2])
+                nx = -_q_mul(VIRTUAL_ANCHOR_DM, int(SIN_Q[d]))
+                ny = _q_mul(VIRTUAL_ANCHOR_DM, int(COS_Q[d]))
+                sgn = 1 if side == SIDE_PLUS else -1
+                virtual.append(((VIRTUAL, *keys[g], side), int(acc[g, 0]) + sgn * nx, int(acc[g, 1]) + sgn * ny,
+                                int(region_of_place[other])))
+    virtual.sort()
+    gate_index = {k: g for g, k in enumerate(keys)}
+    for vid, x, y, real in virtual:
+        g = gate_index[vid[1:4]]
+        k = len(regions)
+        regions.append(Region(vid, x, y, signature_of([keys[g]]), True, ()))
+        adjacency.add((real, k, g))
+    return RegionGraph(places=pl, gate_records=gr, gate_of_record=gate_of_record, gates=acc, segments_cm=seg,
+                       edges=edges, edge_kind=kind, cuts=cuts, region_of_place=region_of_place,
+                       regions=tuple(regions), adjacency=tuple(sorted(adjacency)), params=p)
