@@ -57,6 +57,11 @@ class ExplorationParams:
     # from the presence rule. Off by default (README, "Notes and limits").
     presence_holds_target: bool = _p(False, 'bool', None, None,
                                      "exempt the robot's own target from the presence rule")
+    # A waypoint this close to a place whose teammate reports nothing left there (e_inf 0),
+    # in line of sight of it, was seen from there (PresenceRule._split_by_finished_places;
+    # 0: off). 3 m, the cluster radius: well inside what the teammate's sensor saw there.
+    finished_place_near_m: float = _p(3.0, 'm', 0.0, 100.0,
+                                      "the presence rule drops a waypoint this close to a teammate's finished place")
     team_view_rays: int = _p(600, 'rays', 1, 20000, "rays that cast a teammate's view")
     # The presence rule's deadlock breaker (PresenceRule.revive_shared_frontiers; 0: off): a
     # teammate's place within shared_view_m of one of ours saw about what we saw from there,

@@ -100,10 +100,41 @@ def test_a_wall_between_keeps_the_waypoint():
 def test_passing_the_door_of_a_room_does_not_cancel_the_room():
     ex = _explorer()
     # The teammate went along the corridor and finished with it: it looked through the door
-    # from the corridor, but most of the room was never in its view.
+    # from the corridor, but most of the room was never in its view, so its places by the
+    # door still promise information (the room is its waypoint too).
     for x in np.arange(6.0, 35.0, 1.0):
-        _report(ex, OTHER, float(x), 20.0, 0)
+        _report(ex, OTHER, float(x), 20.0, 40 if 18.0 <= x <= 23.0 else 0)
     assert _apply(ex, (20.5, 21.6), (30.0, 20.0)) == [(20.5, 21.6)]
+
+
+NO_FINISHED_PLACES = dataclasses.replace(P, finished_place_near_m=0.0)
+
+
+@pytest.mark.parametrize("params", [P, NO_FINISHED_PLACES])
+def test_a_waypoint_by_a_place_a_teammate_finished_with_is_dropped(params):
+    """The teammate stood by the door and reports nothing left there (e_inf 0): it saw into
+    the room, although the view cast in this robot's map leaves more than presence_keep_bit
+    of the room (the room's far side is unknown to this robot)."""
+    ex = _explorer(params=params)
+    _report(ex, OTHER, 20.5, 20.0, 0)
+    kept = _apply(ex, (20.5, 21.6))
+    assert (kept == []) == (params.finished_place_near_m > 0)
+
+
+@pytest.mark.parametrize("where", ["behind a wall", "farther than finished_place_near_m",
+                                   "still promising information"])
+def test_a_finished_place_counts_only_near_in_sight_and_at_e_inf_0(where):
+    ex = _explorer()
+    if where == "behind a wall":
+        _report(ex, OTHER, 25.0, 20.0, 0)        # the room's waypoint is north of the wall
+        waypoint = (25.0, 22.5)
+    elif where == "farther than finished_place_near_m":
+        _report(ex, OTHER, 20.5, 20.0, 0)
+        waypoint = (20.5, 20.0 + P.finished_place_near_m + 0.6)
+    else:
+        _report(ex, OTHER, 20.5, 20.0, 40)
+        waypoint = (20.5, 21.6)
+    assert _apply(ex, waypoint) == [waypoint]
 
 
 TEAMMATE_PLACE_X_M = 31.0

@@ -49,6 +49,12 @@ class PresenceRule:
         With seen_only (a robot's last look before it stops), only the places whose sender
         reports no information left there (e_inf 0) count: the teammate saw what was around
         them, where a place still promising information says it did not.
+        And a waypoint within finished_place_near_m of a place whose teammate reports no
+        information left there (e_inf 0), with no known wall between them, is dropped
+        before any view is cast: the teammate saw it from there and says so. The cast view
+        alone misses that: one of the waypoint's info_rays slipping between the teammates'
+        rays to full range counts about 1100 bit, more than presence_keep_bit, and robots
+        drove across the map to waypoints teammates had finished with.
         Returns the waypoints it dropped."""
         if not len(self.s.topo) or not self.s.waypoints.items:
             return []
@@ -61,9 +67,12 @@ class PresenceRule:
             held = [w for w, near in zip(items, near_target) if near]
             items = [w for w, near in zip(items, near_target) if not near]
         others = self._places_of_others()
+        finished = others[self.s.topo.e_inf_codes()[others] == 0]
         if seen_only:
-            others = others[self.s.topo.e_inf_codes()[others] == 0]
+            others = finished
+        items, seen_there = self._split_by_finished_places(items, sight, finished)
         keep, dropped = self._split_by_team_view(items, sight, others)
+        dropped = seen_there + dropped
         self.s.waypoints.items = held + keep
         self.dropped += len(dropped)
         return dropped
@@ -123,6 +132,28 @@ class PresenceRule:
             d2 = ((xy[others, None, :] - xy[mine][None, :, :]) ** 2).sum(axis=2).min(axis=1)
             others = others[d2 > apart_m ** 2]
         return others
+
+    def _split_by_finished_places(self, items: list[Waypoint], sight: np.ndarray,
+                                  finished: np.ndarray) -> tuple[list[Waypoint], list[Waypoint]]:
+        """(kept, dropped): drop the waypoints within finished_place_near_m of one of the
+        places `finished` (teammates' places reporting e_inf 0) in line of sight of it in the
+        local map. Both ends must be in the window; beyond it the test is left to the
+        team-view rule."""
+        near_m = self.s.params.finished_place_near_m
+        if near_m <= 0 or len(finished) == 0 or not items:
+            return list(items), []
+        xy = self.s.topo.positions()[finished]
+        wxy = np.array([(w.x_m, w.y_m) for w in items])
+        wk, vk = np.nonzero(np.hypot(xy[None, :, 0] - wxy[:, 0, None], xy[None, :, 1] - wxy[:, 1, None]) < near_m)
+        w_ij, w_inside = self.s.local_map.cells_of(wxy)
+        v_ij, v_inside = self.s.local_map.cells_of(xy)
+        pick = w_inside[wk] & v_inside[vk]
+        wk, vk = wk[pick], vk[pick]
+        seen = np.zeros(len(items), bool)
+        if len(wk):
+            clear = lines_of_sight(sight, w_ij[wk, 0], w_ij[wk, 1], v_ij[vk, 0], v_ij[vk, 1])
+            seen[wk[clear]] = True
+        return ([w for w, s in zip(items, seen) if not s], [w for w, s in zip(items, seen) if s])
 
     def _split_by_team_view(self, items: list[Waypoint], sight: np.ndarray,
                             others: np.ndarray) -> tuple[list[Waypoint], list[Waypoint]]:
