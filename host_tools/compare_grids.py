@@ -1,0 +1,107 @@
+"""Compare two finished sweeps of the same maps, schemes and seeds that differ in something
+else (a parameter set with --set, or the code): per map and scheme, the median p_max of each,
+their ratio with the sweep's 90 % bootstrap interval, the lowest coverage and T_total / T_90.
+
+    python -m host_tools.compare_grids NEW_OUT OLD_OUT
+
+reads NEW_OUT/trials.jsonl and OLD_OUT/trials.jsonl (as `lorascout sweep --out` writes them)
+and prints a Markdown table; the ratio is NEW / OLD."""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+from pathlib import Path
+
+from host_tools.sweep import ratio_interval
+
+
+class GridError(ValueError):
+    """A trials file that cannot be compared, with what is wrong and where."""
+
+
+def load_trials(out: Path) -> list[dict]:
+    path = out / "trials.jsonl"
+    if not path.is_file():
+        raise GridError(f"{path}: no such file (is {out} the --out of a finished lorascout sweep?)")
+    trials = []
+    for line_no, line in enumerate(path.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            t = json.loads(line)
+            trials.append({"map": str(t["map"]), "strategy": str(t["strategy"]), "radio": str(t["radio"]),
+                           "seed": int(t["seed"]), "p_max_m": max(float(x) for x in t["path_length_m"]),
+                           "coverage": float(t["coverage"]), "t_total_s": float(t["t_total_s"]),
+                           "t_90_s": None if t["t_90_s"] is None else float(t["t_90_s"])})
+        except (ValueError, KeyError, TypeError) as e:
+            raise GridError(f"{path}, line {line_no}: not a sweep trial ({type(e).__name__}: {e})") from None
+    if not trials:
+        raise GridError(f"{path}: no trials")
+    return trials
+
+
+def _groups(trials: list[dict]) -> dict[tuple[str, str, str], dict[int, dict]]:
+    out: dict[tuple[str, str, str], dict[int, dict]] = {}
+    for t in trials:
+        out.setdefault((t["map"], t["strategy"], t["radio"]), {})[t["seed"]] = t
+    return out
+
+
+def compare(new: list[dict], old: list[dict]) -> list[dict]:
+    """One row per (map, scheme, radio) in both grids, over the seeds both ran."""
+    a, b = _groups(new), _groups(old)
+    rows = []
+    for key in sorted(a.keys() & b.keys()):
+        seeds = sorted(a[key].keys() & b[key].keys())
+        if not seeds:
+            continue
+        x = [a[key][s] for s in seeds]
+        y = [b[key][s] for s in seeds]
+        med = lambda ts: statistics.median(t["p_max_m"] for t in ts)  # noqa: E731
+        tail = lambda ts: statistics.median(t["t_total_s"] / t["t_90_s"] for t in ts if t["t_90_s"])  # noqa: E731
+        lo, hi = ratio_interval([t["p_max_m"] for t in x], [t["p_max_m"] for t in y])
+        rows.append({"map": key[0], "scheme": key[1], "radio": key[2], "seeds": seeds,
+                     "p_max_new_m": med(x), "p_max_old_m": med(y), "ratio": med(x) / med(y),
+                     "interval": (lo, hi),
+                     "coverage_min_new": min(t["coverage"] for t in x),
+                     "coverage_min_old": min(t["coverage"] for t in y),
+                     "tail_new": tail(x), "tail_old": tail(y)})
+    return rows
+
+
+def markdown(rows: list[dict]) -> str:
+    lines = ["| map | scheme | seeds | p_max new / old [m] | ratio (90 % interval) | lowest coverage new / old "
+             "| T_total / T_90 median new / old |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        s = r["seeds"]
+        seeds = f"{s[0]}-{s[-1]}" if s == list(range(s[0], s[-1] + 1)) else ",".join(map(str, s))
+        lines.append(f"| {r['map']} | {r['scheme']} ({r['radio']}) | {seeds} | {r['p_max_new_m']:.1f} / "
+                     f"{r['p_max_old_m']:.1f} | {r['ratio']:.2f} ({r['interval'][0]:.2f} to {r['interval'][1]:.2f}) | "
+                     f"{r['coverage_min_new']:.4f} / {r['coverage_min_old']:.4f} | "
+                     f"{r['tail_new']:.1f} / {r['tail_old']:.1f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m host_tools.compare_grids",
+                                 description="compare two finished sweeps (ratio NEW / OLD per map and scheme)")
+    ap.add_argument("new", type=Path, help="the --out of one sweep")
+    ap.add_argument("old", type=Path, help="the --out of the sweep to compare it with")
+    args = ap.parse_args(argv)
+    try:
+        rows = compare(load_trials(args.new), load_trials(args.old))
+    except GridError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    if not rows:
+        print(f"error: {args.new} and {args.old} share no map, scheme, radio and seed", file=sys.stderr)
+        return 2
+    sys.stdout.write(markdown(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
