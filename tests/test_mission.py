@@ -89,8 +89,10 @@ def test_a_finished_robot_whose_done_is_lost_stops_counting_as_active_within_thr
     """The first robot to finish goes silent just as it says so: its "done" and every frame
     after it are lost. Its teammates never hear it finish, yet within three heartbeat
     periods of its last word they stop counting it as exploring (MinPos ranks and the
-    deadlock breaker read only robots counted so)."""
-    rates = TaskRates()
+    deadlock breaker read only robots counted so). A heartbeat every 2 s instead of 10 s:
+    teammates finish within 5 to 15 s of each other here, and one must still be exploring
+    three heartbeats after the first stops."""
+    rates = TaskRates(heartbeat_hz=0.5)
     silent: dict[str, int] = {}
 
     def lose_after_done(sender: int, receiver: int, payload: bytes) -> bool:
