@@ -12,7 +12,7 @@ tick runs the tasks that are due:
     (the scheme's own tasks, if any)
     lidar    10 Hz  fold the newest scan into the local map (and move the window)
     control  20 Hz  tell the scheme of travel, follow the path (or drive a recovery), react
-                    to stalls
+                    to stalls (back off, then plan again)
     planning  1 Hz  one planning cycle (services.planner), or finish
 """
 from __future__ import annotations
@@ -28,7 +28,7 @@ from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, somethin
 from firmware.services.motion import PathFollower, StallDetector
 from firmware.services.planner import FrontiersLeft, Planner
 from firmware.services.pose import SHARED_FRAME, PoseService
-from firmware.services.recovery import Recovery, clear_behind
+from firmware.services.recovery import BackOff, Recovery, clear_behind
 from firmware.services.roster import Roster
 from firmware.services.scan_match import ScanMatcher
 from firmware.services.targets import TargetKeeper
@@ -126,6 +126,8 @@ class ExplorerAgent:
         self.follower = PathFollower(self.p, limits.max_v_mps, limits.max_omega_radps)
         self.stall = StallDetector(self.p, self.rates.control_hz)
         self.recovery = Recovery(self.p, limits.max_v_mps, limits.max_omega_radps)
+        self.stall_back_off = BackOff(min(self.p.min_speed_mps, limits.max_v_mps))
+        self.stall_back_offs = 0
         self.status = "exploring"
 
     def tick(self, profiler: TaskProfiler | None = None) -> None:
@@ -164,6 +166,7 @@ class ExplorerAgent:
                 "unreachable_frontiers": len(self.planner.frontiers.given_up),
                 "narrow_gap_frontiers": len(self.planner.frontiers.behind_gaps),
                 **self.recovery.counts, **self.scheme.stats(), "bumps": self.bumps,
+                "stall_back_offs": self.stall_back_offs,
                 "scan_matches": self.localiser.matches, "scan_corrections": self.localiser.corrections}
 
     def pose_estimate(self) -> tuple[float, float, float] | None:
@@ -261,17 +264,20 @@ class ExplorerAgent:
             if self.done:
                 return
         if self.stall.stuck(pose.v_mps):
-            self._on_stall(pose)
+            self._on_stall(pose, now_us)
             self._task_planning(now_us)
             if self.done:
                 return
-        v, omega = self.follower.command(pose.x_m, pose.y_m, pose.yaw_rad)
+        cmd = self.stall_back_off.command(pose.x_m, pose.y_m, now_us)
+        v, omega = cmd if cmd is not None else self.follower.command(pose.x_m, pose.y_m, pose.yaw_rad)
         self.stall.commanded(v)
         self.hal.drive.command(v, omega)
 
-    def _on_stall(self, pose) -> None:
-        """Driving but not moving. If the LiDAR shows nothing touching ahead, something the
-        map let through (a gap narrower than it looks at 10 cm cells) is in the way: mark it
+    def _on_stall(self, pose, now_us: int) -> None:
+        """Driving but not moving. First back off stall_back_off_m where the last scan shows
+        room behind: pressing on stops (a real drive strains, its wheels dig in or slip), and
+        the next try starts clear of what held it. If the LiDAR shows nothing touching
+        ahead, something the map let through (a gap narrower than it looks at 10 cm cells) is in the way: mark it
         like a bumper would. If it does show something, the map has it already and the path
         was cut too close past it: follow the next path closely instead. (A bump there,
         0.7 m wide, closed the only way out of a room of the Intel lab: one robot, seed 3,
@@ -291,6 +297,9 @@ class ExplorerAgent:
             self.local_map.mark_obstacle_ahead(pose.x_m, pose.y_m, pose.yaw_rad, reach_m)
         self.bumps += 1
         self.follower.clear()
+        if self.p.stall_back_off_m > 0 and self._room_behind(pose, self.p.stall_back_off_m):
+            self.stall_back_off.start(pose.x_m, pose.y_m, self.p.stall_back_off_m, now_us)
+            self.stall_back_offs += 1
         if touching and not wedged:
             self.follower.follow_closely(self.p.follow_closely_after_stall_m)
 
@@ -326,6 +335,9 @@ class ExplorerAgent:
         turn once on the spot, then plan again (services.recovery)."""
         self.targets.recovery_started()
         self.follower.clear()
+        self.recovery.start(self._room_behind(pose, self.p.recovery_back_off_m))
+
+    def _room_behind(self, pose, distance_m: float) -> bool:
+        """The last scan shows nothing in the strip the body sweeps backing up distance_m."""
         half_width_m = self.p.robot_radius_m + self.p.lethal_tolerance_m
-        room = clear_behind(self._binned_last_scan(), pose.yaw_rad, self.p.recovery_back_off_m, half_width_m)
-        self.recovery.start(room)
+        return clear_behind(self._binned_last_scan(), pose.yaw_rad, distance_m, half_width_m)

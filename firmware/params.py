@@ -146,7 +146,10 @@ class ExplorationParams:
     stuck_after_s: float = _p(0.5, 's', 0.0, 3600.0, 'driving without moving this long marks an obstacle (0: off)')
     # ... or, wheels slipping: the LiDAR does not see the travel odometry counts (motion.StallDetector).
     slip_check_m: float = _p(0.05, 'm', 0.0, 10.0, 'odometry travel the LiDAR must see about half of (0: off)')
-    # ... or, if the LiDAR shows it, path points are not cut this far
+    # After a stall the robot first backs off this far (if the LiDAR shows room behind), so it
+    # does not keep pressing on what holds it while it plans again.
+    stall_back_off_m: float = _p(0.1, 'm', 0.0, 1.0, 'after a stall, back off this far if there is room behind')
+    # ... then, if the LiDAR shows what held it, path points are not cut this far
     follow_closely_after_stall_m: float = _p(1.0, 'm', 0.0, 50.0, 'after a stall, path points are not cut this far')
     stall_timeout_s: float = _p(20.0, 's', 0.1, 86400.0, 'no progress towards the target for this long drops it')
     # Log-odds occupancy update.

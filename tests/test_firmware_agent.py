@@ -1,18 +1,22 @@
 """The firmware against a scripted HAL: it terminates in a closed room, and a robot whose
-wheels do not move marks what blocks it (unless its LiDAR shows it), drops its targets for
-good, and still terminates."""
+wheels do not move backs off, marks what blocks it (unless its LiDAR shows it), drops its
+targets for good, and still terminates."""
 import dataclasses
 
 import numpy as np
 import pytest
 
 from firmware.agent import STALLS_BEFORE_CLOSING_A_GAP, ExplorerAgent
+from firmware.params import ExplorationParams
 from firmware.services.local_map import LocalMap
+from firmware.services.recovery import step_time_us
 from firmware.services.waypoints import Waypoint
 from hal.bundle import Hal
 from hal.lora import profile
 from hal.samples import OdometrySample
 from tests.doubles import ScriptedHal, StepClock
+
+P = ExplorationParams()
 
 
 def run(fake: ScriptedHal, seconds: float, scheme: str = "independent") -> ExplorerAgent:
@@ -66,6 +70,31 @@ def test_a_stall_against_something_the_lidar_shows_marks_no_bump_and_follows_clo
     # Stalled at the same spot again and again: the gap ahead is narrower than the map shows.
     assert agent.bumps >= STALLS_BEFORE_CLOSING_A_GAP and agent.local_map.bumps
     assert agent.done, "a robot that really cannot move still drops its targets for good and stops"
+
+
+@pytest.mark.parametrize("wall_behind", [False, True])
+def test_after_a_stall_the_robot_backs_off_before_driving_on_where_the_lidar_shows_room_behind(wall_behind):
+    ranges = np.full(360, 3.0)
+    ranges[150:210] = 10.0          # the corridor leading away, straight ahead (beam 180)
+    if wall_behind:
+        ranges[:15] = ranges[-15:] = 0.3    # beam 0 looks straight back
+    fake = ScriptedHal(ranges)
+    agent = ExplorerAgent(fake.hal(), scheme="independent")
+    agent.setup()
+    while not agent.bumps and fake.t_us < 600e6:
+        fake.run(agent, fake.t_us / 1e6 + 0.05)        # a tick at a time, up to the first stall
+    first = len(fake.commands) - 1                     # the command of the stall's tick
+    fake.run(agent, fake.t_us / 1e6 + 5.0)
+    v_mps = [v for v, _ in fake.commands]
+    reversing = next((k for k, v in enumerate(v_mps[first:]) if v >= 0.0), len(v_mps) - first)
+    if wall_behind:
+        assert agent.stats()["stall_back_offs"] == 0 and reversing == 0
+    else:
+        # These wheels never turn, so the back-off runs to its deadline, then the robot goes on.
+        assert agent.stats()["stall_back_offs"] == 1
+        assert reversing * 50_000 == pytest.approx(step_time_us(P.stall_back_off_m, P.min_speed_mps), abs=50_000)
+        assert all(v == -P.min_speed_mps for v in v_mps[first:first + reversing])
+        assert fake.commands[first + reversing] != (0.0, 0.0)
 
 
 def test_information_at_a_vertex_falls_and_rises_again_with_a_new_revision_each_time():

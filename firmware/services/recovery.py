@@ -34,14 +34,47 @@ def clear_behind(scan: BinnedScan, yaw_rad: float, distance_m: float, half_width
     return not bool(inside.any())
 
 
+def step_time_us(amount: float, rate_per_s: float) -> int:
+    """How long a step of `amount` (metres backed off, radians turned) at `rate_per_s` may
+    take: twice its nominal time and a second more (held or slipping, it ends there)."""
+    return int((2.0 * amount / rate_per_s + 1.0) * 1e6)
+
+
+class BackOff:
+    """Reverse straight back at a fixed speed until distance_m from where it began (by
+    odometry) or until step_time_us has passed."""
+
+    def __init__(self, speed_mps: float) -> None:
+        self.speed_mps = speed_mps
+        self._from_xy: tuple[float, float] | None = None
+        self._distance_m = 0.0
+        self._deadline_us = 0
+
+    @property
+    def active(self) -> bool:
+        return self._from_xy is not None
+
+    def start(self, x_m: float, y_m: float, distance_m: float, now_us: int) -> None:
+        self._from_xy = (x_m, y_m)
+        self._distance_m = distance_m
+        self._deadline_us = now_us + step_time_us(distance_m, self.speed_mps)
+
+    def command(self, x_m: float, y_m: float, now_us: int) -> tuple[float, float] | None:
+        """(v, omega) for this control tick, or None once it is over."""
+        if self._from_xy is None:
+            return None
+        if now_us < self._deadline_us and \
+                math.hypot(x_m - self._from_xy[0], y_m - self._from_xy[1]) < self._distance_m:
+            return -self.speed_mps, 0.0
+        self._from_xy = None
+        return None
+
+
 @dataclass
-class _Step:
-    name: str
-    x_m: float
-    y_m: float
+class _Turn:
     turned_rad: float
     last_yaw_rad: float
-    deadline_us: int           # a step that cannot finish (blocked, slipping) ends here
+    deadline_us: int           # a turn that cannot finish ends here
 
 
 class Recovery:
@@ -50,45 +83,43 @@ class Recovery:
 
     def __init__(self, params: ExplorationParams, max_v_mps: float, max_omega_radps: float) -> None:
         self.p = params
-        self.back_speed_mps = min(params.min_speed_mps, max_v_mps)
         self.turn_rate_radps = min(params.recovery_turn_radps, max_omega_radps)
+        self._back_off = BackOff(min(params.min_speed_mps, max_v_mps))
         self._steps: list[str] = []
-        self._step: _Step | None = None
+        self._turn: _Turn | None = None
         self.counts: dict[str, int] = {"recoveries": 0, **{f"recovery_{s}s": 0 for s in STEPS}}
 
     @property
     def active(self) -> bool:
-        return self._step is not None or bool(self._steps)
+        return self._back_off.active or self._turn is not None or bool(self._steps)
 
     def start(self, room_behind: bool) -> None:
         """Begin a recovery; back off only if room_behind (clear_behind on the last scan)."""
         self._steps = ([BACK_OFF] if room_behind and self.p.recovery_back_off_m > 0 else []) + [ROTATE]
-        self._step = None
+        self._turn = None
         self.counts["recoveries"] += 1
-
-    def _duration_us(self, name: str) -> int:
-        """Twice the time a step takes at its speed, and a second more."""
-        nominal_s = self.p.recovery_back_off_m / self.back_speed_mps if name == BACK_OFF \
-            else 2 * math.pi / self.turn_rate_radps
-        return int((2.0 * nominal_s + 1.0) * 1e6)
 
     def command(self, x_m: float, y_m: float, yaw_rad: float, now_us: int) -> tuple[float, float] | None:
         """(v, omega) for this control tick, or None once the recovery is over."""
         while True:
-            if self._step is None:
+            if not self._back_off.active and self._turn is None:
                 if not self._steps:
                     return None
                 name = self._steps.pop(0)
-                self._step = _Step(name, x_m, y_m, 0.0, yaw_rad, now_us + self._duration_us(name))
+                if name == BACK_OFF:
+                    self._back_off.start(x_m, y_m, self.p.recovery_back_off_m, now_us)
+                else:
+                    self._turn = _Turn(0.0, yaw_rad, now_us + step_time_us(2 * math.pi, self.turn_rate_radps))
                 self.counts[f"recovery_{name}s"] += 1
-            s = self._step
-            if now_us < s.deadline_us:
-                if s.name == BACK_OFF and math.hypot(x_m - s.x_m, y_m - s.y_m) < self.p.recovery_back_off_m:
-                    return -self.back_speed_mps, 0.0
-                if s.name == ROTATE:
-                    s.turned_rad += abs((yaw_rad - s.last_yaw_rad + math.pi) % (2 * math.pi) - math.pi)
-                    s.last_yaw_rad = yaw_rad
-                    if s.turned_rad < 2 * math.pi:
-                        return 0.0, self.turn_rate_radps
-            self._step = None
-
+            if self._back_off.active:
+                cmd = self._back_off.command(x_m, y_m, now_us)
+                if cmd is not None:
+                    return cmd
+                continue
+            t = self._turn
+            if now_us < t.deadline_us:
+                t.turned_rad += abs((yaw_rad - t.last_yaw_rad + math.pi) % (2 * math.pi) - math.pi)
+                t.last_yaw_rad = yaw_rad
+                if t.turned_rad < 2 * math.pi:
+                    return 0.0, self.turn_rate_radps
+            self._turn = None
