@@ -22,9 +22,10 @@ from pathlib import Path
 from host_tools.cli import EXIT_INTERRUPTED
 from host_tools.hil import (DEFAULT_CAN_CHANNEL, ROBOTS_MAX, HilError, HilSettings, HilWorld, RobotRun,
                             check_can_channel, run_hil)
-from host_tools.options import JSON, MAP, RADIO, ROBOTS, SCHEME, SEED, SIM_S_MAX, Opt, add_options, with_default
+from host_tools.options import (JSON, LIDAR_PHASE, MAP, RADIO, ROBOTS, SCHEME, SEED, SIM_S_MAX, WHEEL_SLIP, Opt,
+                                add_options, with_default)
 from host_tools.safe_io import OutputPathError, check_out_file, strict_dumps, write_text
-from world_sim.world import LIDAR_PHASE_HELP, WHEEL_SLIP_HELP, WorldParams
+from world_sim.world import WorldParams
 
 DEFAULT_MAP = "cave:7:30x30"
 
@@ -38,8 +39,7 @@ OPTIONS = (
     with_default(SCHEME, "bayer-faigl:minpos"),
     Opt("--start", "pose", "start pose in metres (and degrees): once, the centre of the team's staging area "
         "(default: the map's start); once per robot, each robot's own start", repeat=True, metavar="X,Y[,YAW_DEG]"),
-    Opt("--wheel-slip", "float", WHEEL_SLIP_HELP, lo=0.0, hi=1.0, default=0.0, metavar="FRAC"),
-    Opt("--lidar-phase-ms", "float", LIDAR_PHASE_HELP, unit="ms", lo=0.0, hi=99.999, default=0.0, metavar="MS"),
+    WHEEL_SLIP, LIDAR_PHASE,
     Opt("--can-channel", "text", "the udp_multicast CAN bus's multicast group (the default is interface-local: "
         "frames never leave this host)", default=DEFAULT_CAN_CHANNEL, metavar="GROUP"),
     Opt("--out", "out_dir", "write each robot's configuration (robotN.toml), log (robotN.log) and summary "

@@ -7,11 +7,11 @@ import sys
 import threading
 
 from host_tools.mission import MissionConfig, run_mission
-from host_tools.options import FRAMES, JSON, MAP, MAX_SIM_S, QUIET, RADIO, ROBOTS, SCHEME, SEED, SET, Opt, add_options
+from host_tools.options import (FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, ROBOTS, SCHEME, SEED, SET,
+                                WHEEL_SLIP, Opt, add_options)
 from host_tools.overrides import combine_overrides, describe, params_help, params_with
 from host_tools.progress import progress_bar
 from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, strict_dumps, write_text
-from world_sim.world import LIDAR_PHASE_HELP, WHEEL_SLIP_HELP, WorldParams
 
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as a shell reports a command Ctrl-C ended
 
@@ -26,8 +26,7 @@ OPTIONS = (
     Opt("--start", "pose", "start pose in metres (and degrees; default the map's yaw): once, the centre of the "
         "team's staging area (default: the map's start); once per robot, each robot's own start",
         repeat=True, metavar="X,Y[,YAW_DEG]"),
-    Opt("--wheel-slip", "float", WHEEL_SLIP_HELP, lo=0.0, hi=1.0, default=0.0, metavar="FRAC"),
-    Opt("--lidar-phase-ms", "float", LIDAR_PHASE_HELP, unit="ms", lo=0.0, hi=99.999, default=0.0, metavar="MS"),
+    WHEEL_SLIP, LIDAR_PHASE,
     SET, JSON,
     Opt("--out", "out_dir", "write mission.png and mission.json here (each replaced only by a complete new one)",
         metavar="DIR"),
@@ -52,12 +51,12 @@ def main(args: argparse.Namespace) -> int:
     except (ValueError, OutputPathError) as exc:
         print(f"lorascout run: {exc}", file=sys.stderr)
         return 2
-    world_params = WorldParams().with_slip_and_lidar_phase(args.wheel_slip, args.lidar_phase_ms)
     cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
                         max_sim_s=args.max_sim_s, radio=args.radio, starts=tuple(args.start),
                         strategy=args.strategy, frames=args.frames, serial_radio=args.serial_radio,
                         serial_lidar=args.serial_lidar, serial_uwb=args.serial_uwb,
-                        capture_path=None if args.capture is None else str(args.capture))
+                        capture_path=None if args.capture is None else str(args.capture),
+                        wheel_slip_frac=args.wheel_slip, lidar_phase_ms=args.lidar_phase_ms)
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
     state = {"last": 0.0, "stop": False}
 
@@ -75,7 +74,7 @@ def main(args: argparse.Namespace) -> int:
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, on_sigint) if in_main_thread else None
     try:
-        result = run_mission(cfg, progress, params=params_with(overrides), world_params=world_params,
+        result = run_mission(cfg, progress, params=params_with(overrides),
                              should_stop=lambda: state["stop"])
     except (ValueError, KeyError, OSError) as exc:
         bar.close()
@@ -87,7 +86,6 @@ def main(args: argparse.Namespace) -> int:
     bar.close()
     report = result.to_json()
     report["params_overrides"] = dict(overrides)
-    report["world"] = {"wheel_slip_frac": world_params.wheel_slip_frac, "lidar_phase_us": world_params.lidar_phase_us}
     interrupted = result.termination == "interrupted"
     # The report is printed before the files are written: if writing fails, it is not lost.
     if args.json:

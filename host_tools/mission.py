@@ -60,6 +60,11 @@ class MissionConfig:
     serial_lidar: bool = False          # every robot's LiDAR through an emulated RPLIDAR on a pty
     serial_uwb: bool = False            # every robot's UWB through an emulated DWM1001 on a pty
     capture_path: str | None = None     # record every frame on the air (JSON Lines capture)
+    # The simulated world's wheels and LiDAR (WorldParams.with_slip_and_lidar_phase): the share
+    # of commanded wheel travel the encoders report while a wall holds the body, and the
+    # LiDAR's first scan this long after the start (then one a period, between the ticks).
+    wheel_slip_frac: float = 0.0
+    lidar_phase_ms: float = 0.0
 
 
 @dataclass
@@ -118,6 +123,8 @@ class MissionResult:
             "radio": self.config.radio,
             "strategy": self.config.strategy,
             "frames": self.config.frames,
+            "world": {"wheel_slip_frac": self.world.params.wheel_slip_frac,
+                      "lidar_phase_us": self.world.params.lidar_phase_us},
             "coverage": round(self.coverage, 6),
             "coverage_raw_component": round(self.coverage_raw, 6),
             "overlap": round(self.overlap, 6),
@@ -215,12 +222,13 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 observer: Callable[[int, list[ExplorerAgent]], None] | None = None) -> MissionResult:
     """One mission to completion, the time limit, or until `should_stop()` (asked once per
     tick) says so: then it ends there, with termination "interrupted", and the result holds
-    everything up to that tick. loss_rule (radio_sim.channel.Channel) loses chosen
+    everything up to that tick. world_params: the simulated world's physics, with the
+    wheels' slip and the LiDAR's phase taken from cfg. loss_rule (radio_sim.channel.Channel) loses chosen
     receptions; observer is called with the mission time and the agents once per simulated
     second (tests)."""
     occ, start, label = resolve_map(cfg.map_spec)
     poses = start_poses(occ, start, cfg.starts, cfg.robots)
-    world = World(occ, poses, cfg.seed, world_params)
+    world = World(occ, poses, cfg.seed, world_params.with_slip_and_lidar_phase(cfg.wheel_slip_frac, cfg.lidar_phase_ms))
     # Scored against the free area a robot body can reach from the starts (see reachable_free);
     # the figure against the raw 4-connected free component is reported too.
     reachable = reachable_from_starts(occ, poses, robot_radius_m=world_params.robot_radius_m)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from host_tools.safe_io import OutputPathError, check_in_file, check_out_dir, check_out_file
+from world_sim.world import LIDAR_PHASE_HELP, WHEEL_SLIP_HELP
 
 SEED_MAX = 2**32 - 1           # seeds are what numpy's SeedSequence takes, bounded for the wire and the reader
 ROBOTS_MAX = 64                # a 64-slot TDMA frame is 29 s at SF7/125 kHz; node ids are 0..255 on the wire
@@ -256,6 +257,10 @@ SCHEMES = Opt("--schemes", "scheme", f"coordination schemes to run (default: {' 
               metavar="NAME[:VARIANT]")
 FRAMES = Opt("--frames", "choice", "odometry frames: one shared by the team (start poses measured at deployment), or "
              "each robot's own, unknown to the others", choices=("shared", "own"), default="shared")
+WHEEL_SLIP = Opt("--wheel-slip", "float", WHEEL_SLIP_HELP, lo=0.0, hi=1.0, default=0.0,
+                 metavar="FRAC")
+LIDAR_PHASE = Opt("--lidar-phase-ms", "float", LIDAR_PHASE_HELP, unit="ms", lo=0.0, hi=99.999,
+                  default=0.0, metavar="MS")
 SET = Opt("--set", "override", "change an explorer parameter (firmware/params.py; the list is below); repeatable",
           repeat=True, metavar="NAME=VALUE", dest="overrides")
 JSON = Opt("--json", "flag", "print one JSON object instead of the summary")

@@ -46,6 +46,9 @@ class SweepSpec:
     also_radios: tuple[str, ...] = ()
     # Explorer parameters changed for every trial (`--set`), sorted by name.
     overrides: Overrides = ()
+    # The simulated world's wheels and LiDAR for every trial (MissionConfig's fields).
+    wheel_slip_frac: float = 0.0
+    lidar_phase_ms: float = 0.0
 
     def lora_strategies(self) -> tuple[str, ...]:
         return tuple(s for s in self.strategies if "radio" in build_scheme(s).needs_of() and "mesh" not in build_scheme(s).needs_of())
@@ -54,7 +57,8 @@ class SweepSpec:
         grid = [(self.radio, s) for s in self.strategies]
         grid += [(radio, s) for radio in self.also_radios for s in self.lora_strategies()]
         return [MissionConfig(map_spec=m, robots=self.robots, seed=self.first_seed + k, max_sim_s=self.max_sim_s,
-                              radio=radio, strategy=s)
+                              radio=radio, strategy=s, wheel_slip_frac=self.wheel_slip_frac,
+                              lidar_phase_ms=self.lidar_phase_ms)
                 for radio, s in grid for m in self.maps for k in range(self.seeds)]
 
 
@@ -107,13 +111,16 @@ PARTIAL_NAME = "trials.partial.jsonl"   # every finished trial, paths included, 
 def trial_key(cfg_or_report: MissionConfig | dict, overrides: Overrides = ()) -> tuple:
     """What identifies a trial in a grid (for resuming one): a mission configuration with the
     sweep's parameter overrides, or a finished trial's report (which records its own; reports
-    from before overrides existed ran the defaults)."""
+    from before overrides or world settings existed ran the defaults)."""
     if isinstance(cfg_or_report, MissionConfig):
         c = cfg_or_report
-        return (c.map_spec, c.strategy, c.radio, c.seed, c.robots, float(c.max_sim_s), tuple(overrides))
+        return (c.map_spec, c.strategy, c.radio, c.seed, c.robots, float(c.max_sim_s), tuple(overrides),
+                float(c.wheel_slip_frac), round(c.lidar_phase_ms * 1000))
     r = cfg_or_report
+    world = r.get("world", {})
     return (r["map_spec"], r["strategy"], r["radio"], r["seed"], r["robots"], float(r["max_sim_s"]),
-            tuple(sorted(r.get("params_overrides", {}).items())))
+            tuple(sorted(r.get("params_overrides", {}).items())), float(world.get("wheel_slip_frac", 0.0)),
+            int(world.get("lidar_phase_us", 0)))
 
 
 def coverage_floor(coverage: float) -> float:
@@ -293,6 +300,26 @@ def shortfalls(results: list[dict]) -> list[dict]:
             if r["coverage"] < COVERAGE_TARGET or r["termination"] != "complete"]
 
 
+def _longest_push(trials: list[dict]) -> dict | None:
+    """The longest a robot of these trials pushed a wall (s), and on which seed (None for
+    trials from before the world measured it)."""
+    trials = [t for t in trials if "longest_push_s" in t]
+    if not trials:
+        return None
+    worst = max(trials, key=lambda t: (max(t["longest_push_s"]), -t["seed"]))
+    return {"s": max(worst["longest_push_s"]), "seed": worst["seed"]}
+
+
+def _world_changed(spec: dict) -> str:
+    """The world settings a sweep changed, in words ("" for none)."""
+    parts = []
+    if spec.get("wheel_slip_frac"):
+        parts.append(f"wheels slip {spec['wheel_slip_frac']:g}")
+    if spec.get("lidar_phase_ms"):
+        parts.append(f"LiDAR {spec['lidar_phase_ms']:g} ms off the tick")
+    return ", ".join(parts)
+
+
 def _ratio_holds(ratio: float, bound: str) -> bool:
     return ratio <= float(bound.split()[1]) + 1e-12
 
@@ -337,6 +364,7 @@ def tables(spec: SweepSpec, results: list[dict]) -> dict:
                 "trials": len(trials),
                 "t_total_median_s": round(statistics.median(t["t_total_s"] for t in trials), 1) if trials else None,
                 "overlap_median": round(statistics.median(t["overlap"] for t in trials), 3) if trials else None,
+                "longest_push": _longest_push(trials),
             }
         table3.append(row)
     table4 = []
@@ -400,8 +428,10 @@ def tables(spec: SweepSpec, results: list[dict]) -> dict:
 def markdown(t: dict) -> str:
     spec = t["spec"]
     changed = describe(spec.get("overrides", ()))
+    world = _world_changed(spec)
     lines = [f"p_max [m] (median over {spec['seeds']} seeds of the longest robot path; {spec['robots']} robots, "
              f"radio {spec['radio']}" + (f"; explorer parameters changed: {changed}" if changed else "")
+             + (f"; simulated world: {world}" if world else "")
              + "); in brackets: lowest coverage, missions complete",
              "", "| map | " + " | ".join(spec["strategies"]) + " |", "|---|" + "---|" * len(spec["strategies"])]
     for row in t["table3_p_max"]:
@@ -411,6 +441,13 @@ def markdown(t: dict) -> str:
             cells.append("n/a" if c["p_max_m"] is None else
                          f"{c['p_max_m']:.1f} ({c['coverage_min']:.4f}, {c['complete']}/{c['trials']})")
         lines.append(f"| {row['map']} | " + " | ".join(cells) + " |")
+    if world:
+        lines += ["", "Longest push against a wall of any robot, over the trials (s, and the seed):", "",
+                  "| map | " + " | ".join(spec["strategies"]) + " |", "|---|" + "---|" * len(spec["strategies"])]
+        for row in t["table3_p_max"]:
+            pushes = [row[s]["longest_push"] for s in spec["strategies"]]
+            lines.append(f"| {row['map']} | " + " | ".join("n/a" if p is None else f"{p['s']:.2f} (seed {p['seed']})"
+                                                          for p in pushes) + " |")
     lines += ["", "| scheme | packet [B] | LoRa B/s per robot (mean / peak 10 s) | mesh B/s per robot | "
               "duty-cycle violations | robots |", "|---|---|---|---|---|---|"]
     for r in t["table4_communication"]:

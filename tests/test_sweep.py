@@ -192,3 +192,25 @@ def test_without_a_terminal_each_trial_is_a_line_on_stderr(tmp_path, capsys):
     assert "trial 2/2: minpos on cave:4:40x40 seed 1 (ideal-100Bps): p_max " in err
     assert main(argv + ["--quiet", "--overwrite"]) == 0
     assert "trial 1/2" not in capsys.readouterr().err
+
+
+def test_a_sweep_in_a_world_with_slipping_wheels_keys_and_tabulates_its_trials_by_that_world(tmp_path, capsys):
+    from host_tools.cli import main
+    from host_tools.sweep import PARTIAL_NAME
+
+    argv = ["sweep", "--maps", "cave:4:20x20", "--strategies", "independent", "--robots", "1", "--seeds", "1",
+            "--max-sim-s", "10", "--jobs", "1", "--quiet", "--out", str(tmp_path)]
+    assert main(argv + ["--wheel-slip", "1", "--lidar-phase-ms", "37"]) == 0
+    (trial,) = [json.loads(line) for line in (tmp_path / PARTIAL_NAME).read_text().splitlines()]
+    assert trial["world"] == {"wheel_slip_frac": 1.0, "lidar_phase_us": 37_000}
+    out = capsys.readouterr().out
+    assert "simulated world: wheels slip 1, LiDAR 37 ms off the tick" in out
+    assert "Longest push against a wall" in out and f"(seed {trial['seed']})" in out
+    # The same grid in the default world is another grid: its trial is run, not taken from the first.
+    assert main(argv + ["--resume"]) == 0
+    assert "resuming: 0 trials done earlier, 1 to run" in capsys.readouterr().err
+    assert main(argv + ["--resume", "--wheel-slip", "1", "--lidar-phase-ms", "37"]) == 0
+    assert "resuming: 1 trials done earlier, 0 to run" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as refused:
+        main(argv + ["--wheel-slip", "1.5"])
+    assert refused.value.code == 2 and "--wheel-slip: '1.5' is out of range" in capsys.readouterr().err
