@@ -29,7 +29,9 @@ the same records hold the identical graph, bit for bit (`RegionGraph.digest`).
 6. Visited (eq. 2) = the region has places: places are a grow-only set, so a visited
    region stays visited.
 
-Not here yet: routing over the graph, the private label grid (5.2 d).
+`RegionGraph.label` places a point in a region for private decisions (nearest place with
+no gate between, else the virtual region beyond the gate crossed): the spec's label grid
+(5.2 d) is not built. Not here yet: routing over the graph.
 """
 from __future__ import annotations
 
@@ -224,6 +226,42 @@ class RegionGraph:
             if best is None or (d2, reg.id) < best[0]:
                 best = ((d2, reg.id), k)
         return None if best is None else best[1]
+
+    def label(self, x_dm: int, y_dm: int, reach_dm: int, nearest: int = 8) -> int | None:
+        """The region a point (a waypoint, the robot) lies in, for private decisions (5.2 d.3):
+        the region of the nearest of the `nearest` places within reach_dm whose segment to
+        the point crosses no gate; else, seen from the nearest place, the virtual region
+        beyond the gate crossed nearest the point (None if that side has no virtual region,
+        or no place is near)."""
+        pl = self.places
+        if not len(pl):
+            return None
+        x_dm, y_dm = int(x_dm), int(y_dm)
+        d, idx = self._place_tree.query((x_dm, y_dm), k=min(nearest, len(pl)), distance_upper_bound=reach_dm + 0.5)
+        d, idx = np.atleast_1d(d), np.atleast_1d(idx)
+        idx = idx[np.isfinite(d)]
+        if not len(idx):
+            return None
+        px, py = pl[idx, 0] * 10, pl[idx, 1] * 10
+        s = self.segments_cm
+        if not len(s):
+            return int(self.region_of_place[idx[0]])
+        hit = crosses(px[:, None], py[:, None], x_dm * 10, y_dm * 10,
+                      s[None, :, 0], s[None, :, 1], s[None, :, 2], s[None, :, 3])
+        clear = np.flatnonzero(~hit.any(axis=1))
+        if len(clear):
+            return int(self.region_of_place[idx[clear[0]]])
+        gs = np.flatnonzero(hit[0])
+        d2 = (self.gates[gs, 0] - x_dm) ** 2 + (self.gates[gs, 1] - y_dm) ** 2
+        g = int(gs[np.lexsort((gs, d2))[0]])
+        ax, ay, bx, by = (int(v) for v in s[g])
+        side = SIDE_PLUS if orient(ax, ay, bx, by, x_dm * 10, y_dm * 10) >= 0 else SIDE_MINUS
+        return self.region_index((VIRTUAL, *self.gate_key(g), side))
+
+    def gates_between(self, a: int, b: int) -> tuple[int, ...]:
+        """The gates through which regions a and b are adjacent."""
+        lo, hi = min(a, b), max(a, b)
+        return tuple(g for x, y, g in self.adjacency if (x, y) == (lo, hi))
 
     @property
     def _xy_keys(self) -> np.ndarray:
