@@ -181,6 +181,30 @@ class ExplorationParams:
     meier_team_extent_m: float = _p(100.0, 'm', 10.0, 1000.0, "teammates' polygons are drawn this far around the robot")
     meier_min_hole_m2: float = _p(0.5, 'm^2', 0.0, 100.0, "holes in a teammate's polygons smaller than this are not cut out")
     meier_target_expiry_s: float = _p(90.0, 's', 1.0, 36000.0, "a teammate's target is forgotten this long after its record")
+    # Pereira et al. (firmware.schemes.pereira; ../shared/schemes/pereira.md sections 2, 4 and
+    # 5). The gate detector's and the fold's geometry stay in firmware/schemes/pereira/params.py:
+    # every robot must fold the same records into the same regions, so they are part of the
+    # dialect's meaning, not a robot's tuning; the widening ratio is the one tuning knob the
+    # spec names (section 7: 0.7 against over-segmentation).
+    pereira_margin_m: float = _p(1.0, 'm', 0.0, 50.0,
+                                 'the current region changes after this much travel in another (hysteresis)')
+    pereira_label_reach_m: float = _p(10.0, 'm', 0.5, 100.0,
+                                      'a waypoint is in the region of the nearest place this close, no gate between')
+    pereira_explored_cycles: int = _p(2, 'cycles', 1, 100,
+                                      'planning cycles in a row a region must look explored before it is claimed')
+    pereira_intent_period_s: float = _p(5.0, 's', 0.5, 3600.0, 'the intent record is repeated this often')
+    pereira_intent_move_m: float = _p(1.0, 'm', 0.0, 100.0, 'a new intent record when the goal moves this far')
+    pereira_intent_expiry_s: float = _p(15.0, 's', 1.0, 36000.0,
+                                        "a teammate's intent is ignored this long after its record")
+    pereira_summary_period_s: float = _p(10.0, 's', 1.0, 3600.0, 'a summary of the records held is sent this often')
+    pereira_push_max: int = _p(6, 'records', 0, 64,
+                               "records pushed per lagging origin and summary heard (0: no gossip)")
+    pereira_gate_period_s: float = _p(2.0, 's', 0.1, 3600.0, "gates are looked for in the robot's map this often")
+    pereira_widening_kappa: float = _p(0.5, '1', 0.0, 10.0,
+                                       'a gate needs free space (1 + this) times its clearance wide beyond it')
+    pereira_revive_min_bit: float = _p(4000.0, 'bit', 0.0, 1e9,
+                                       "with no teammate exploring, waypoints this rich in regions others "
+                                       "claimed are taken back")
 
     @property
     def entropy_per_cell_bit(self) -> float:

@@ -21,6 +21,7 @@ SCHEMES: dict[str, tuple[str, str]] = {
     "dense": ("firmware.schemes.dense_baseline", "DenseBaseline"),
     "independent": ("firmware.schemes.independent", "Independent"),
     "meier": ("firmware.schemes.meier.scheme", "Meier"),
+    "pereira": ("firmware.schemes.pereira.scheme", "Pereira"),
 }
 
 ALIASES: dict[str, str] = {

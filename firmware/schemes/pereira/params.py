@@ -1,7 +1,12 @@
-"""The Pereira scheme's parameters (pereira.md section 2 and 5.2), units in the names.
+"""The geometry of Pereira's gate detector and region fold (pereira.md section 2 and 5.2),
+units in the names.
 
-Kept in the package until the scheme is wired in; then they belong in firmware/params.py
-(a typed PereiraParams overridable with --set, as the spec's integration plan says).
+The scheme's behaviour (margin, periods, expiry, gossip, revival) is declared in
+firmware/params.py as pereira_* parameters, overridable with --set and listed in the
+README. These stay here: every robot must fold the same records into the same regions, so
+the fold's thresholds belong to the dialect's meaning rather than to one robot's tuning.
+Only widening_kappa, the tuning knob the spec names (section 7), is taken from
+ExplorationParams.pereira_widening_kappa by the scheme.
 """
 from __future__ import annotations
 

@@ -2,10 +2,9 @@
 
 Dialect id 3 (Bayer & Faigl 1, Meier 2). The spec numbered the records 4..8 when every
 record type lived in one table; with one dialect per scheme they are codes 1..5 of this
-dialect, same fields, same sizes (9, 9, 10, 12, 16 bytes). Not registered yet: the scheme
-does not exist, so `firmware.schemes.all_dialects()` does not hold this dialect and nodes do
-not decode it. The codec takes the RecordType objects below directly, so `encode`/`decode`
-here work without the registry.
+dialect, same fields, same sizes (9, 9, 10, 12, 16 bytes). The scheme (scheme.py) is
+registered, so `firmware.schemes.all_dialects()` holds this dialect and every node decodes
+it; `encode`/`decode` here take the RecordType objects directly, without the registry.
 
 `place`, `gate` and `claim` share the origin's one 16-bit record counter `oseq` (the
 paper's timestamp, compared per origin only, RFC 1982); they are the grow-only record set

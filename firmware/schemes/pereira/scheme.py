@@ -1,0 +1,402 @@
+"""Pereira, Moreira & Veloso (CONTROLO 2014) as a scheme: regions and their exploration
+statuses shared over LoRa, frontier categories and a conflict rule (pereira.md).
+
+Each robot publishes evidence as records of its own counter (oseq): a `place` every
+d_build_m of travel with the disc its map certifies free, and a `gate` (a doorway, a
+corridor mouth) once its map has shown it on three looks in a row (gates.py). Every robot
+folds the places and gates it holds into the same region graph (regions.py, store.py).
+After each planning cycle it judges which regions it has explored (A2: every place of the
+region known in its window, none of its waypoints there, two cycles in a row) and says so,
+or takes it back, in a `claim`; the claims it hears give each region's e^o (status.py: eq.
+1 and 2, the same-robot override, the loop rule, no clock).
+
+Its planning stage: waypoints in regions a teammate's claim calls explored are left to the
+team (A5, A6; with no teammate exploring, the rich ones are taken back); the others are
+ranked by category (f^fu, f^c, f^fs, f^o) and by Algorithm 1's conflict rule with eq. (3)
+against the `intent`s teammates broadcast (choice.py); the shared choice takes the
+cheapest of the best rank. Records reach robots out of range through others: a `summary`
+every pereira_summary_period_s, answered with what the summariser lacks (gossip.py).
+Beyond the local window it routes along a graph of its own places.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from firmware import kernels
+from firmware.scheduler import Task
+from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, PRIORITY_STATUS, Candidate, OwnPlaces, PlanningView,
+                                   Scheme, Services, cost_along_graph)
+from firmware.schemes.pereira.choice import CONFLICT_RANK, OTHER, Whereabouts, categorise, conflicts
+from firmware.schemes.pereira.gates import GateTracker, detect_gates, place_clear_dm
+from firmware.schemes.pereira.gossip import Holdings
+from firmware.schemes.pereira.params import PARAMS
+from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_MAX_DM, OSEQ_BITS, Claim, Gate, Intent, Place,
+                                              Summary, dm, serial_newer, typed, values_of)
+from firmware.schemes.pereira.regions import RegionGraph
+from firmware.schemes.pereira.store import Store
+from firmware.services.pose import TravelMilestones
+from hal.samples import OdometrySample
+
+IDLE, EXPLORING, DONE = 0, 1, 2            # records.INTENT_STATES
+LINK_BACK_MAX = 15                         # the place record's 4-bit link_back
+PUSH_BACKLOG = 4                           # pushed records waiting on the link at most
+NEWS_READ_S = 0.2                          # a frame that left the air is read within this long
+WINDOW_MARGIN_CELLS = 2                    # a region judged explored lies this far inside the window
+_OWN_TYPES = ("place", "gate", "claim")
+
+
+class Pereira(Scheme):
+    name = "pereira"
+    doc = "Pereira et al.'s region statuses merged without clocks, frontier categories and eq. (3), over LoRa"
+    variants = {"": "regions from gates and places, statuses as claims, categories and eq. (3), gossip for multi-hop"}
+    dialect = DIALECT
+    needs = frozenset({"radio", "shared_frame"})
+
+    def attach(self, services: Services) -> None:
+        super().attach(services)
+        p = services.params
+        self.pp = dataclasses.replace(PARAMS, widening_kappa=p.pereira_widening_kappa)
+        self.store = Store(params=self.pp)
+        self.holdings = Holdings()
+        self.tracker = GateTracker(self.pp)
+        self.where = Whereabouts(p.pereira_margin_m)
+        self._own_places = OwnPlaces(services)
+        self._milestones = TravelMilestones(p.d_build_m)
+        self._oseq = 0
+        self._last_place_oseq: int | None = None
+        self._intents: dict[int, tuple[Intent, int]] = {}     # teammate -> (last intent, when heard)
+        self._iseq = 0
+        self._said_intent: tuple[int, int, int, int] | None = None   # state, category, goal x dm, goal y dm
+        self._said_intent_us = 0
+        self._claimed: dict[tuple[int, ...], tuple[int, int, int, int]] = {}   # region id -> anchor x, y, sig, explored
+        self._clean: dict[tuple[int, ...], int] = {}         # region id -> cycles in a row it looked explored
+        self._category: dict[tuple[float, float], int] = {}  # this cycle's candidates' categories
+        self._sight: np.ndarray | None = None
+        self._xy = (0.0, 0.0)                                # the robot's position at the last plan
+        self._view_key: tuple | None = None
+        self._explored_others: set[int] = set()
+        self._outbox: dict[tuple[int, int], tuple[str, Place | Gate | Claim]] = {}
+        self._summary_turn = 0
+        self._outbox_us = self._news_until_us = 0
+        self._finished = False
+        self._retracted = False                              # a teammate took a claim back since wake_up looked
+        self._woken_us = 0
+        self.counts = dict.fromkeys((
+            "places_sent", "gates_sent", "claims_sent", "claims_retracted", "intents_sent", "summaries_sent",
+            "records_pushed", "records_heard_new", "waypoints_left_to_team", "waypoints_taken_back",
+            "choices_yielded", "records_dropped_by_link"), 0)
+
+    def tasks(self) -> list[Task]:
+        p = self.s.params
+        return [Task("pereira_gates", 1.0 / p.pereira_gate_period_s, self._task_gates),
+                Task("pereira_summary", 1.0 / p.pereira_summary_period_s, self._task_summary),
+                Task("pereira_outbox", self.s.rates.radio_hz, self._task_outbox)]
+
+    # --- own evidence -----------------------------------------------------------------
+    def _next_oseq(self) -> int:
+        self._oseq = self._oseq % ((1 << OSEQ_BITS) - 1) + 1
+        return self._oseq
+
+    def _publish(self, name: str, record: Place | Gate | Claim, priority: int) -> None:
+        """Own records go into the own set at once and onto the air."""
+        self.store.add(record)
+        self.holdings.add(name, record)
+        self.counts[f"{name}s_sent"] += 1
+        if self.s.send is not None and not self.s.send(name, values_of(record), priority):
+            self.counts["records_dropped_by_link"] += 1
+
+    def on_travel(self, pose: OdometrySample, now_us: int) -> None:
+        """A place every d_build_m of travel, with the disc the robot's map shows free."""
+        self._own_places.on_travel(pose)
+        x_m, y_m = pose.x_m, pose.y_m
+        if not self._milestones.due(x_m, y_m) or not self.s.has_planned():
+            return
+        lm, res = self.s.local_map, self.s.params.resolution_m
+        i, j = lm.cell_of(x_m, y_m)
+        r = int(math.ceil(self.pp.clear_cap_m / res)) + 3
+        i0, i1, j0, j1 = max(0, i - r), min(lm.n, i + r + 1), max(0, j - r), min(lm.n, j + r + 1)
+        if i0 >= i1 or j0 >= j1:
+            return
+        clear = place_clear_dm(lm.state_of(i0, i1, j0, j1), lm.row0 + i0, lm.col0 + j0, res, x_m, y_m, self.pp)
+        oseq = self._next_oseq()
+        gap = (oseq - self._last_place_oseq) % (1 << OSEQ_BITS) if self._last_place_oseq is not None else 0
+        link_back = gap if 0 < gap <= LINK_BACK_MAX else 0
+        self._publish("place", Place(self.s.robot_id, oseq, dm(x_m), dm(y_m), clear, link_back), PRIORITY_MOTION)
+        self._last_place_oseq = oseq
+        self._milestones.mark(x_m, y_m)
+
+    def _task_gates(self, now_us: int) -> None:
+        """Gates in the robot's own window; one record for each newly confirmed gate the
+        region graph does not hold yet."""
+        if self._finished or not self.s.has_planned():
+            return
+        lm, p = self.s.local_map, self.s.params
+        # Only around the robot, where its map changes (the sensor's reach, d_cam_m, and a
+        # gate's widening radius beyond): gates farther off were looked at when the robot
+        # was there, and the whole window costs three times as much. The crop is bordered
+        # by unknown cells, so no gate is found against its edge (detect_gates wants the
+        # surroundings of a gate observed).
+        i, j = lm.cell_of(*self._xy)
+        r = int(math.ceil((p.d_cam_m + self.pp.widening_radius_m) / p.resolution_m))
+        i0, i1, j0, j1 = max(0, i - r), min(lm.n, i + r + 1), max(0, j - r), min(lm.n, j + r + 1)
+        if i0 >= i1 or j0 >= j1:
+            return
+        state = np.full((i1 - i0 + 2, j1 - j0 + 2), kernels.UNKNOWN, np.uint8)
+        state[1:-1, 1:-1] = lm.state_of(i0, i1, j0, j1)
+        seen = detect_gates(state, lm.row0 + i0 - 1, lm.col0 + j0 - 1, p.resolution_m, self.pp)
+        graph = self.store.graph()
+        folded = [graph.gate_key(g) for g in range(len(graph.gates))]
+        for g in self.tracker.update(seen, folded):
+            x, y, d, half = g.wire()
+            self._publish("gate", Gate(self.s.robot_id, self._next_oseq(), x, y, d, half), PRIORITY_STATUS)
+
+    # --- what the robot hears ---------------------------------------------------------
+    def on_record(self, rtype: str, values: Mapping[str, int], now_us: int) -> None:
+        me = self.s.robot_id
+        if values["sender_id"] == me:
+            return      # own records relayed back: this robot's view of them is its own (loop rule)
+        if values["sender_id"] == EMPTY_ORIGIN:
+            return      # no robot: the id marks an empty summary slot, so it could never be summarised
+        if rtype == "intent":
+            it = typed(rtype, values)
+            held = self._intents.get(it.sender_id)
+            if held is None or serial_newer(it.iseq, held[0].iseq, 8) or \
+                    now_us - held[1] > self.s.params.pereira_intent_expiry_s * 1e6:
+                self._intents[it.sender_id] = (it, now_us)
+            self.s.roster.heard_at(it.sender_id, it.x_dm / 10.0, it.y_dm / 10.0, now_us)
+            return
+        if rtype == "summary":
+            s = typed(rtype, values)
+            for name, record in self.holdings.to_push(s.sender_id, s.entries, self.s.params.pereira_push_max):
+                self._outbox.setdefault((record.sender_id, record.oseq), (name, record))
+            return
+        record = typed(rtype, values)
+        self._outbox.pop((record.sender_id, record.oseq), None)     # someone else pushed it
+        self.holdings.add(rtype, record)
+        if self.store.add(record):
+            self.counts["records_heard_new"] += 1
+            if rtype == "claim" and not record.explored:
+                self._retracted = True
+
+    # --- gossip -----------------------------------------------------------------------
+    def _task_summary(self, now_us: int) -> None:
+        if self.s.send is None or self.s.params.pereira_push_max == 0:
+            return
+        entries = self.holdings.summary_entries(self._summary_turn)
+        self._summary_turn += 1
+        self.s.send("summary", values_of(Summary(self.s.robot_id, entries)), PRIORITY_INFO, key="summary")
+        self.counts["summaries_sent"] += 1
+
+    def _task_outbox(self, now_us: int) -> None:
+        """Pushes onto the link a few at a time, so one another robot sends first can still
+        be cancelled (on_record)."""
+        s = self.s
+        waiting = sum(s.queued(t) for t in _OWN_TYPES)
+        self._outbox_us = now_us
+        if waiting or self._outbox:
+            self._news_until_us = now_us + int(NEWS_READ_S * 1e6)
+        self._news_until_us = max(self._news_until_us, s.on_air_until_us() + int(NEWS_READ_S * 1e6))
+        room = PUSH_BACKLOG - waiting
+        while room > 0 and self._outbox and s.send is not None:
+            key = next(iter(self._outbox))
+            name, record = self._outbox.pop(key)
+            self.counts["records_pushed"] += 1
+            if not s.send(name, values_of(record), 0, key=("push", *key)):
+                self.counts["records_dropped_by_link"] += 1
+            room -= 1
+
+    def has_news(self) -> bool:
+        """Own or pushed records waiting, or on the air until less than NEWS_READ_S ago."""
+        return self._outbox_us < self._news_until_us or bool(self._outbox)
+
+    def wake_up(self, now_us: int) -> bool:
+        """A teammate took back a claim: frontiers this robot left to it may be its again."""
+        if not self._retracted or now_us - self._woken_us < self.s.params.known_map_refresh_s * 1e6:
+            return False
+        self._retracted, self._woken_us, self._finished = False, now_us, False
+        return True
+
+    def on_finished(self) -> None:
+        self._finished = True
+        # The roster learns it from the heartbeat too; the intent stops teammates yielding to it now.
+        self._send_intent(DONE, OTHER, *self._position(), 0.0, force=True, now_us=self._said_intent_us)
+
+    # --- the region view --------------------------------------------------------------
+    def graph(self) -> RegionGraph:
+        return self.store.graph()
+
+    def _explored_by_others(self) -> set[int]:
+        """Regions (indices of graph()) some teammate's effective claim calls explored."""
+        graph = self.store.graph()
+        key = (id(graph), len(self.store))
+        if key != self._view_key:
+            view = self.store.view(self.s.robot_id)
+            self._explored_others = {k for k, r in enumerate(view.regions) if r.explored_by_others}
+            self._view_key = key
+        return self._explored_others
+
+    def _labels(self, graph: RegionGraph, xy: list[tuple[float, float]]) -> list[int | None]:
+        reach = int(round(self.s.params.pereira_label_reach_m * 10))
+        return [graph.label(dm(x), dm(y), reach) for x, y in xy]
+
+    def _position(self) -> tuple[float, float]:
+        return self._xy
+
+    # --- the planning stage -----------------------------------------------------------
+    def filter_waypoints(self, view: PlanningView) -> None:
+        """Waypoints in regions a teammate's claim calls explored are left to the team (A5,
+        A6), unless no teammate explores any more and they are rich (the spec's end-game
+        safety net: a wrong claim must not leave a hole)."""
+        items = self.s.waypoints.items
+        if not items:
+            return
+        others = self._explored_by_others()
+        if not others:
+            return
+        graph = self.store.graph()
+        alone = not self.s.roster.any_active(view.now_us)
+        keep = []
+        for w, r in zip(items, self._labels(graph, [(w.x_m, w.y_m) for w in items])):
+            if r is None or r not in others:
+                keep.append(w)
+            elif alone and w.e_bit >= self.s.params.pereira_revive_min_bit:
+                keep.append(w)
+                self.counts["waypoints_taken_back"] += 1
+            else:
+                self.counts["waypoints_left_to_team"] += 1
+        items[:] = keep
+
+    def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
+        p, me = self.s.params, self.s.robot_id
+        self._xy = (view.x_m, view.y_m)
+        self._sight = view.sight
+        graph = self.store.graph()
+        here = graph.label(dm(view.x_m), dm(view.y_m), int(round(p.pereira_label_reach_m * 10)))
+        self.where.update(graph, here, view.x_m, view.y_m)
+        current, previous = self.where.indices(graph)
+        labels = self._labels(graph, [(c.x_m, c.y_m) for c in own])
+        explored = self._explored_by_others() | {k for k, r in enumerate(graph.regions)
+                                                 if self._clean.get(r.id, 0) >= p.pereira_explored_cycles}
+        cats = categorise(graph, labels, [(c.x_m, c.y_m) for c in own], current, previous, explored,
+                          p.pereira_margin_m)
+        heading = self._headings(graph, view.now_us)
+        self._category = {}
+        for c, r, cat in zip(own, labels, cats):
+            clash = r is not None and r in heading and \
+                conflicts(math.hypot(c.x_m - view.x_m, c.y_m - view.y_m), me, heading[r])
+            c.rank = cat + (CONFLICT_RANK if clash else 0)
+            self.counts["choices_yielded"] += int(clash)
+            self._category[(c.x_m, c.y_m)] = cat
+        cost_along_graph(view, own)
+        return own
+
+    def _headings(self, graph: RegionGraph, now_us: int) -> dict[int, list[tuple[float, int]]]:
+        """Region -> (distance to goal in m, id) of each teammate headed there (h_B resolved in
+        this robot's graph, A12); stale intents and finished robots left out (A10)."""
+        p = self.s.params
+        done = {rid for rid, m in self.s.roster.members().items() if m.done}
+        reach = int(round(p.pereira_label_reach_m * 10))
+        out: dict[int, list[tuple[float, int]]] = {}
+        for rid, (it, heard_us) in sorted(self._intents.items()):
+            if it.state != EXPLORING or rid in done or now_us - heard_us > p.pereira_intent_expiry_s * 1e6:
+                continue
+            h = graph.label(it.goal_x_dm, it.goal_y_dm, reach)
+            if h is not None:
+                out.setdefault(h, []).append((it.goal_dist_dm / 10.0, rid))
+        return out
+
+    # --- after each plan: statuses and intent ------------------------------------------
+    def after_plan(self, pose: OdometrySample, now_us: int) -> None:
+        self._xy = (pose.x_m, pose.y_m)
+        if self._sight is not None:
+            self._judge_regions()
+        t = self.s.current_target()
+        if t is None:
+            self._send_intent(IDLE, OTHER, pose.x_m, pose.y_m, 0.0, force=False, now_us=now_us)
+        else:
+            self._send_intent(EXPLORING, self._category.get((t.x_m, t.y_m), OTHER), t.x_m, t.y_m,
+                              math.hypot(t.x_m - pose.x_m, t.y_m - pose.y_m), force=False, now_us=now_us)
+
+    def _judge_regions(self) -> None:
+        """A2: a region is explored for this robot when all its places lie known in the
+        window and none of its waypoints is in it, on pereira_explored_cycles cycles in a
+        row; a claim says so, and a retraction follows when one of its waypoints appears
+        there again. A claim is re-issued when the region's anchor or signature changes."""
+        p, me = self.s.params, self.s.robot_id
+        graph = self.store.graph()
+        lm, sight = self.s.local_map, self._sight
+        items = self.s.waypoints.items
+        with_waypoints = set(self._labels(graph, [(w.x_m, w.y_m) for w in items]))
+        clean: dict[tuple[int, ...], int] = {}
+        explored_now: list[int] = []
+        for k, reg in enumerate(graph.regions):
+            if reg.virtual or k in with_waypoints:
+                continue
+            ij, inside = lm.cells_of(graph.places[list(reg.places), :2] / 10.0)
+            m = WINDOW_MARGIN_CELLS
+            if not (inside.all() and (ij >= m).all() and (ij < lm.n - m).all()):
+                continue
+            if (sight[ij[:, 0], ij[:, 1]] == kernels.UNKNOWN).any():
+                continue
+            clean[reg.id] = self._clean.get(reg.id, 0) + 1
+            if clean[reg.id] >= p.pereira_explored_cycles:
+                explored_now.append(k)
+        self._clean = clean
+        for k in explored_now:
+            reg = graph.regions[k]
+            said = (reg.anchor_x_dm, reg.anchor_y_dm, reg.signature, 1)
+            if self._claimed.get(reg.id) != said:
+                self._claim(*said)
+                self._claimed[reg.id] = said
+        for rid, (ax, ay, sig, explored) in list(self._claimed.items()):
+            k = graph.region_index(rid)
+            if k is None:
+                del self._claimed[rid]        # merged away: its claims name a signature no region has
+            elif explored and k in with_waypoints and graph.regions[k].signature == sig:
+                self._claim(ax, ay, sig, 0)
+                self._claimed[rid] = (ax, ay, sig, 0)
+                self.counts["claims_retracted"] += 1
+
+    def _claim(self, ax: int, ay: int, sig: int, explored: int) -> None:
+        self._publish("claim", Claim(self.s.robot_id, self._next_oseq(), ax, ay, sig, explored, 0), PRIORITY_STATUS)
+
+    def _send_intent(self, state: int, category: int, gx: float, gy: float, dist_m: float, force: bool,
+                     now_us: int) -> None:
+        """The intent (h, p^r, p^g of the paper's message) when the goal moved, its category
+        or the state changed, or every pereira_intent_period_s."""
+        p = self.s.params
+        if self.s.send is None:
+            return
+        x, y = self._position()
+        said = self._said_intent
+        moved = said is None or math.hypot(gx - said[2] / 10.0, gy - said[3] / 10.0) >= p.pereira_intent_move_m
+        due = said is None or now_us - self._said_intent_us >= p.pereira_intent_period_s * 1e6
+        if not (force or due or moved or (state, category) != said[:2]):
+            return
+        self._iseq = (self._iseq + 1) % 256
+        it = Intent(self.s.robot_id, dm(x), dm(y), dm(gx), dm(gy), min(GOAL_DIST_MAX_DM, int(round(dist_m * 10))),
+                    state, category, self._iseq)
+        self.s.send("intent", values_of(it), PRIORITY_MOTION, key="intent")
+        self._said_intent = (state, category, dm(gx), dm(gy))
+        self._said_intent_us = now_us
+        self.counts["intents_sent"] += 1
+
+    # --- for the host -----------------------------------------------------------------
+    def stats(self) -> dict[str, int]:
+        graph = self.store.graph()
+        return {**self.counts, "records_held": len(self.store), "regions": sum(not r.virtual for r in graph.regions),
+                "virtual_regions": sum(r.virtual for r in graph.regions), "gates_held": len(graph.gates),
+                "regions_explored_by_others": len(self._explored_by_others())}
+
+    def drawables(self) -> dict:
+        graph = self.store.graph()
+        xy = graph.places[:, :2] / 10.0 if len(graph.places) else np.zeros((0, 2))
+        explored = self._explored_by_others() | {graph.region_index(rid) for rid, c in self._claimed.items() if c[3]}
+        marked = np.array([int(r) in explored for r in graph.region_of_place], bool)
+        segs = graph.segments_cm.reshape(-1, 2, 2) / 100.0 if len(graph.segments_cm) else np.zeros((0, 2, 2))
+        return {"title": "Pereira regions: places, gates (red rings: places in regions explored)",
+                "points": xy, "segments": segs, "highlight": marked, "what": "places"}

@@ -1,0 +1,17 @@
+"""Pereira et al.'s scheme end to end on the simulated HAL: a small team explores a cave by
+itself over eu868-g3, and every robot ends holding the same records and so the same
+region graph (pereira.md 6.3 bars 1, 2 and 8, on a small map)."""
+from host_tools.mission import MissionConfig, run_mission
+
+
+def test_a_team_finishes_a_cave_and_every_robot_holds_the_same_region_graph():
+    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=3, seed=1, strategy="pereira", max_sim_s=900,
+                                  radio="eu868-g3"))
+    assert r.termination == "complete" and r.coverage >= 0.99 and r.robots_in_wall == 0
+    stats = r.to_json()["explorer_stats"]
+    assert all(n > 0 for n in stats["places_sent"]) and all(n > 0 for n in stats["intents_sent"])
+    assert sum(stats["gates_sent"]) > 0 and sum(stats["claims_sent"]) > 0
+    assert min(stats["regions"]) >= 2
+    stores = [a.scheme.store for a in r.agents]
+    assert len({s.digest() for s in stores}) == 1
+    assert len({s.graph().digest() for s in stores}) == 1
