@@ -35,8 +35,12 @@ Not yet, or not as the spec says:
 - goal persistence (A18) is the shared choice's (keep the target unless another of no worse
   rank costs under 0.8 of it), not 1.25 x U;
 - the end-game safety net takes back rich waypoints (pereira_revive_min_bit) in claimed
-  regions once no teammate explores, without subtracting what the claimants' places saw;
+  regions once no teammate explores, unless a teammate's place lies within revive_clear_m
+  of the waypoint; the spec's subtraction of the claimants' places' cast view is not done;
   a robot that has already stopped is woken only by a retraction, not by that net;
+- robots share no maps (as in the paper): a robot whose every frontier lies in regions
+  teammates claimed stops, so one robot can end up exploring much longer than the rest
+  (maze_a: see the commit log for figures);
 - a done robot sends one done intent, not one every 30 s (the heartbeat says done);
 - pushes are cancelled when the record is overheard only while they wait in the scheme's
   outbox (at most PUSH_BACKLOG on the link), there is no LinkLayer.cancel;

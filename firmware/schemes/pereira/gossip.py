@@ -60,10 +60,20 @@ class Holdings:
             origins = sorted((origins + origins)[start:start + SUMMARY_SLOTS])
         return tuple((o, self.upto(o)) for o in origins)
 
-    def to_push(self, sender: int, entries: tuple[tuple[int, int], ...], at_most: int) -> list[HeldRecord]:
+    def snapshot(self) -> dict[int, int]:
+        """upto of every origin now (to_push's `held_since`)."""
+        return dict(self._upto)
+
+    def to_push(self, sender: int, entries: tuple[tuple[int, int], ...], at_most: int,
+                held_since: dict[int, int] | None = None) -> list[HeldRecord]:
         """What to answer a summary of `sender` with: for every origin it lags on, the next
         `at_most` records held after its entry. An origin missing from a summary with free
-        slots is one the sender holds nothing of; from a full one, unknown."""
+        slots is one the sender holds nothing of; from a full one, unknown.
+
+        held_since: an earlier snapshot(); only records held then are pushed. A summary
+        waits for its sender's slot and is seconds old when heard, so records the whole
+        team heard from their origin since would look lacking: 5 robots on maze_a over
+        eu868-g3 pushed 3800 records that way with no frame lost."""
         theirs = dict(entries)
         full = len(entries) >= SUMMARY_SLOTS
         out: list[HeldRecord] = []
@@ -71,8 +81,9 @@ class Holdings:
             if o == sender:
                 continue
             lag = theirs.get(o, None if full else 0)
-            if lag is None or self.upto(o) <= lag:
+            upto = self.upto(o) if held_since is None else min(self.upto(o), held_since.get(o, 0))
+            if lag is None or upto <= lag:
                 continue
             held = self._by_origin[o]
-            out.extend(held[q] for q in range(lag + 1, min(lag + at_most, self.upto(o)) + 1))
+            out.extend(held[q] for q in range(lag + 1, min(lag + at_most, upto) + 1))
         return out

@@ -258,6 +258,12 @@ class RegionGraph:
         side = SIDE_PLUS if orient(ax, ay, bx, by, x_dm * 10, y_dm * 10) >= 0 else SIDE_MINUS
         return self.region_index((VIRTUAL, *self.gate_key(g), side))
 
+    def places_within(self, x_dm: float, y_dm: float, r_dm: float) -> np.ndarray:
+        """Indices of the places within r_dm of the point, ascending."""
+        if not len(self.places):
+            return np.zeros(0, np.int64)
+        return np.array(sorted(self._place_tree.query_ball_point((x_dm, y_dm), r_dm)), np.int64)
+
     def gates_between(self, a: int, b: int) -> tuple[int, ...]:
         """The gates through which regions a and b are adjacent."""
         lo, hi = min(a, b), max(a, b)

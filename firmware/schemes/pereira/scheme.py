@@ -81,6 +81,8 @@ class Pereira(Scheme):
         self._explored_others: set[int] = set()
         self._outbox: dict[tuple[int, int], tuple[str, Place | Gate | Claim]] = {}
         self._summary_turn = 0
+        self._held_at_summary: dict[int, int] = {}          # what was held when this robot last summarised
+        self._left_labels: set[int | None] = set()           # regions of waypoints left to the team this cycle
         self._outbox_us = self._news_until_us = 0
         self._finished = False
         self._retracted = False                              # a teammate took a claim back since wake_up looked
@@ -171,7 +173,8 @@ class Pereira(Scheme):
             return
         if rtype == "summary":
             s = typed(rtype, values)
-            for name, record in self.holdings.to_push(s.sender_id, s.entries, self.s.params.pereira_push_max):
+            for name, record in self.holdings.to_push(s.sender_id, s.entries, self.s.params.pereira_push_max,
+                                                      self._held_at_summary):
                 self._outbox.setdefault((record.sender_id, record.oseq), (name, record))
             return
         record = typed(rtype, values)
@@ -187,6 +190,7 @@ class Pereira(Scheme):
         if self.s.send is None or self.s.params.pereira_push_max == 0:
             return
         entries = self.holdings.summary_entries(self._summary_turn)
+        self._held_at_summary = self.holdings.snapshot()
         self._summary_turn += 1
         self.s.send("summary", values_of(Summary(self.s.robot_id, entries)), PRIORITY_INFO, key="summary")
         self.counts["summaries_sent"] += 1
@@ -226,9 +230,6 @@ class Pereira(Scheme):
         self._send_intent(DONE, OTHER, *self._position(), 0.0, force=True, now_us=self._said_intent_us)
 
     # --- the region view --------------------------------------------------------------
-    def graph(self) -> RegionGraph:
-        return self.store.graph()
-
     def _explored_by_others(self) -> set[int]:
         """Regions (indices of graph()) some teammate's effective claim calls explored."""
         graph = self.store.graph()
@@ -263,12 +264,21 @@ class Pereira(Scheme):
         for w, r in zip(items, self._labels(graph, [(w.x_m, w.y_m) for w in items])):
             if r is None or r not in others:
                 keep.append(w)
-            elif alone and w.e_bit >= self.s.params.pereira_revive_min_bit:
+            elif alone and w.e_bit >= self.s.params.pereira_revive_min_bit and not self._teammate_stood_near(graph, w):
                 keep.append(w)
                 self.counts["waypoints_taken_back"] += 1
             else:
                 self.counts["waypoints_left_to_team"] += 1
+                self._left_labels.add(r)
         items[:] = keep
+
+    def _teammate_stood_near(self, graph: RegionGraph, w) -> bool:
+        """Did a teammate leave a place within revive_clear_m of the waypoint? Then it saw
+        what the waypoint would show (this robot shares no map, so its own map holds
+        everything teammates explored as unknown: taking back every rich waypoint, a last
+        robot on maze_a drove its teammates' regions again, 1144 m against their 100-490 m)."""
+        near = graph.places_within(w.x_m * 10, w.y_m * 10, self.s.params.revive_clear_m * 10)
+        return bool((graph.places[near, 2] != self.s.robot_id).any())
 
     def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
         p, me = self.s.params, self.s.robot_id
@@ -330,7 +340,10 @@ class Pereira(Scheme):
         graph = self.store.graph()
         lm, sight = self.s.local_map, self._sight
         items = self.s.waypoints.items
-        with_waypoints = set(self._labels(graph, [(w.x_m, w.y_m) for w in items]))
+        # Waypoints left to the team count: a region is not explored for this robot because
+        # a teammate says so (else one claim would make every robot claim it too).
+        with_waypoints = set(self._labels(graph, [(w.x_m, w.y_m) for w in items])) | self._left_labels
+        self._left_labels = set()
         clean: dict[tuple[int, ...], int] = {}
         explored_now: list[int] = []
         for k, reg in enumerate(graph.regions):
