@@ -251,7 +251,7 @@ class ExplorerAgent:
             if cmd is not None:
                 self.hal.drive.command(*cmd)
                 return
-            # Recovered: retry on tight paths, starting now.
+            # Recovered: retry on tight, slow paths, starting now.
             self.planner.tight_until_us = now_us + int(self.p.recovery_retry_s * 1e6)
             self._task_planning(now_us)
             if self.done:
@@ -328,7 +328,7 @@ class ExplorerAgent:
         if plan.recover:
             self._start_recovery(pose)
             return
-        self.follower.set_path(plan.path_xy, plan.clearance_m)
+        self.follower.set_path(plan.path_xy, plan.clearance_m, slow=plan.slow)
 
     def _start_recovery(self, pose) -> None:
         """A target failed for the first time: back off if the last scan shows room behind,

@@ -108,11 +108,11 @@ class ExplorationParams:
     min_speed_mps: float = _p(0.1, 'm/s', 0.01, 10.0, 'the slowest the robot drives a path')
     # Recovery (services.recovery): before a target is struck or dropped, back off this far
     # if the LiDAR shows room behind, turn once on the spot at this rate, then retry on a
-    # tighter path (no lethal tolerance, wall faces at their cells' centres; driven by the room
-    # the expected faces leave, so slowly only where that is little) this long.
+    # tighter, slower path (no lethal tolerance, wall faces at their cells' centres,
+    # min_speed_mps) this long.
     recovery_back_off_m: float = _p(0.3, 'm', 0.0, 5.0, 'a recovery backs off this far if there is room behind')
     recovery_turn_radps: float = _p(0.8, 'rad/s', 0.05, 10.0, 'a recovery turns once on the spot at this rate')
-    recovery_retry_s: float = _p(20.0, 's', 0.0, 3600.0, 'after a recovery, plans are tight for this long')
+    recovery_retry_s: float = _p(20.0, 's', 0.0, 3600.0, 'after a recovery, plans are tight and slow for this long')
     lookahead_m: float = _p(0.35, 'm', 0.05, 50.0, "path follower's lookahead")
     rotate_in_place_rad: float = _p(0.8, 'rad', 0.0, 3.1416,
                                     'heading error above which the robot turns on the spot')

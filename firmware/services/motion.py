@@ -18,6 +18,7 @@ class PathFollower:
         self.max_omega_radps = max_omega_radps
         self.path_xy = np.zeros((0, 2))
         self.room_m = np.zeros(0)                       # room from each path point to the walls
+        self._slow = False
         self._next = 0
         self._closely_for_m = 0.0                       # travel left in follow_closely
         self._last_xy: tuple[float, float] | None = None
@@ -28,9 +29,11 @@ class PathFollower:
         a path's bends can press the body against the very post the path bends around."""
         self._closely_for_m = distance_m
 
-    def set_path(self, path_xy: np.ndarray, room_m: np.ndarray | None = None) -> None:
+    def set_path(self, path_xy: np.ndarray, room_m: np.ndarray | None = None, slow: bool = False) -> None:
         """room_m: the room from each point to the walls (the planner's clearance); without
-        it the path counts as roomy."""
+        it the path counts as roomy. slow: drive it at min_speed_mps (a retry after a
+        recovery)."""
+        self._slow = slow
         self.path_xy = path_xy
         self.room_m = np.full(len(path_xy), np.inf) if room_m is None else np.asarray(room_m, np.float64)
         self._next = 0
@@ -83,7 +86,7 @@ class PathFollower:
         turn_on_spot_rad = self.p.rotate_in_place_rad * (0.4 + 0.6 * roomy)
         if abs(err) > turn_on_spot_rad:
             return 0.0, omega
-        top_v = self.p.min_speed_mps + (self.max_v_mps - self.p.min_speed_mps) * roomy
+        top_v = self.p.min_speed_mps + (0.0 if self._slow else (self.max_v_mps - self.p.min_speed_mps) * roomy)
         v = min(self.max_v_mps, top_v) * (1.0 - abs(err) / turn_on_spot_rad)
         # Slow down for the last point so the robot does not overshoot it.
         if self._next == len(pts) - 1:

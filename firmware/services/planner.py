@@ -41,6 +41,7 @@ class Plan:
     done: bool                     # nothing left to explore that this robot can reach
     clearance_m: np.ndarray = field(default_factory=lambda: np.zeros(0))   # room at each point
     recover: bool = False          # a target failed for the first time: recover, then retry it
+    slow: bool = False             # a retry after a recovery: drive the path slowly
 
 
 class Planner:
@@ -61,8 +62,8 @@ class Planner:
         # left anywhere before the robot stops; frontiers (global cells) it sent the robot to.
         self.known = KnownMap(params, local_map)
         self._far_tried: dict[tuple[int, int], bool] = {}     # True: the scheme left it to a teammate
-        # Until then plans are tight (no lethal tolerance, faces at their cells' centres): the retry
-        # after a recovery (the agent sets it when one ends).
+        # Until then plans are tight (no lethal tolerance, faces at their cells' centres) and slow: the
+        # retry after a recovery (the agent sets it when one ends).
         self.tight_until_us = -1
         self._tried_tight: set[tuple[int, int]] = set()   # frontier cells (global) a tight retry was for
 
@@ -133,26 +134,17 @@ class Planner:
             if cells is not None:
                 ended = self.targets.head_for(c, now_us)
                 self._tell(ended, "stalled")
-                if self.targets.recovery_wanted and not tight:
-                    self._spare_hopeless_recoveries(start)
                 if self.targets.recovery_wanted:
                     return Plan(self.targets.target, np.zeros((0, 2)), False, recover=True)
                 if self.targets.target is None:
                     return Plan(None, np.zeros((0, 2)), False)
                 xy, room = self._path(cells, layers)
-                if tight:
-                    # The tight layers' room is the most there can be; the follower's speed and
-                    # steering go by the room the map's walls most likely leave.
-                    ij = np.array(cells, np.int64).reshape(-1, 2)
-                    room = self.map.layers().clearance_m[ij[:, 0], ij[:, 1]].astype(np.float64)
-                return Plan(self.targets.target, xy, False, room)
+                return Plan(self.targets.target, xy, False, room, slow=tight)
             target = Target(c.x_m, c.y_m, c.cost_m, c.from_team)
             if self.targets.strike(c, now_us):
                 self._tell(target, "unreachable")
             candidates = [k for k in candidates if (k.x_m, k.y_m) != key and not self.waypoints.is_banned(k.x_m, k.y_m)]
         self.targets.target = None
-        if self.targets.recovery_wanted and not tight:
-            self._spare_hopeless_recoveries(start)
         if self.targets.recovery_wanted:
             return Plan(None, np.zeros((0, 2)), False, recover=True)
         if self.targets.strikes_pending():
@@ -172,23 +164,6 @@ class Planner:
         if self._head_for_far_frontier(view, x_m, y_m, now_us):
             return Plan(None, np.zeros((0, 2)), False)  # the next cycle heads there
         return Plan(None, np.zeros((0, 2)), True)
-
-    def _spare_hopeless_recoveries(self, start: tuple[int, int]) -> None:
-        """Targets in the window that ask for a recovery but that not even tight paths (the
-        most room there can be) reach from here go without one. A recovery's worth is its
-        tight retry: the LiDAR sees all round already, so turning on the spot shows little
-        new, and the retry would crawl at min_speed_mps for recovery_retry_s to a place the
-        map walls in (in a furnished office most struck targets are such pockets)."""
-        layers = self.map.layers(tight=True)
-        traversable = layers.traversable
-        traversable[start] = True
-        reachable = kernels.reachable_cells(traversable, start[0], start[1])
-        hopeless = set()
-        for key in self.targets.waiting_for_recovery():
-            wi, wj = self.map.cell_of(*key)
-            if self._in_window(wi, wj) and not reachable[wi, wj]:
-                hopeless.add(key)
-        self.targets.no_recovery_for(hopeless)
 
     def _head_for_far_frontier(self, view: PlanningView, x_m: float, y_m: float, now_us: int) -> bool:
         """A robot about to stop: a frontier its body can reach anywhere in what it has

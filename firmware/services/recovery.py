@@ -1,7 +1,7 @@
 """Recovery behaviours: what a robot tries before it gives a target up (nav2's recovery
 tree, in the order it uses): back off a little if the LiDAR shows room behind, turn once on
 the spot so the LiDAR sees all around again (a door half-seen from an angle, a stale
-obstacle), then retry the target once on a tighter path. Only a target that fails
+obstacle), then retry the target once on a tighter, slower path. Only a target that fails
 again after that is struck or dropped (services.targets).
 
 The behaviour drives from odometry alone: distances and angles are measured from the pose
