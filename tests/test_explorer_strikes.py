@@ -37,8 +37,15 @@ def _in_w(ex: PlannerRig) -> bool:
     return any((w.x_m, w.y_m) == TARGET_XY for w in ex.waypoints.items)
 
 
+def _open_gap(ex: PlannerRig, wall_x_m: float, cells: int) -> None:
+    """A gap of `cells` free cells in the wall across the corridor, centred on y = 20 m."""
+    y0_m = 20.0 - cells * P.resolution_m / 2
+    paint(ex.local_map, wall_x_m, wall_x_m + 0.1, y0_m + 0.05, y0_m + cells * P.resolution_m - 0.05, P.logodds_min)
+
+
 def test_fast_replans_strike_an_unreachable_target_once_per_planning_period():
     ex = _explorer(wall_across_at_x_m=25.0)
+    _open_gap(ex, 25.0, 5)      # 0.5 m: the body fits only if the walls lie at the far side of their cells
     # A robot without a route replans every 0.2 s: five plans in one second are one strike.
     for t_us in range(0, SECOND_US, 200_000):
         plan = ex.plan(*ROBOT_XY, t_us)
@@ -47,7 +54,8 @@ def test_fast_replans_strike_an_unreachable_target_once_per_planning_period():
     plan = ex.plan(*ROBOT_XY, SECOND_US)
     assert _in_w(ex) and not plan.done and _strike_counts(ex) == {TARGET_XY: 2}
     plan = ex.plan(*ROBOT_XY, 2 * SECOND_US)
-    # The third strike asks for a recovery first (back off, turn, retry); the target stays.
+    # The third strike asks for a recovery first (back off, turn, retry on tight paths, which
+    # pass the gap); the target stays.
     assert plan.recover and not plan.done and _in_w(ex) and ex.stat("targets_unreachable") == 0
     ex.targets.recovery_started()
     plan = ex.plan(*ROBOT_XY, 3 * SECOND_US)
@@ -56,6 +64,18 @@ def test_fast_replans_strike_an_unreachable_target_once_per_planning_period():
     assert plan.recover and not plan.done
     plan = ex.plan(*ROBOT_XY, 4 * SECOND_US)
     assert plan.done, "a target unreachable for three planning periods and after a recovery is dropped for good"
+
+
+def test_a_target_not_even_tight_paths_reach_is_dropped_without_a_recovery():
+    ex = _explorer(wall_across_at_x_m=25.0)      # a solid wall: no way past it at all
+    for t_us in (0, SECOND_US):
+        ex.plan(*ROBOT_XY, t_us)
+    plan = ex.plan(*ROBOT_XY, 2 * SECOND_US)
+    assert not plan.recover and _in_w(ex) and _strike_counts(ex) == {TARGET_XY: 2}
+    plan = ex.plan(*ROBOT_XY, 3 * SECOND_US)
+    assert not _in_w(ex) and ex.stat("targets_unreachable") == 1
+    # The frontier beyond the wall still gets its one tight look before the robot stops.
+    assert plan.recover and not plan.done
 
 
 # --- where a robot off the traversable cells plans from -------------------------------------
@@ -126,3 +146,4 @@ def test_targets_behind_a_wall_next_to_the_robots_own_places_are_dropped_not_tak
     assert done, "the robot still heads for waypoints the grid says it cannot reach"
     assert ex.stat("targets_unreachable") >= 1   # dropping one bans the other, 1 m away
     assert not {a_xy, b_xy} & {(w.x_m, w.y_m) for w in ex.waypoints.items}
+

@@ -134,6 +134,8 @@ class Planner:
             if cells is not None:
                 ended = self.targets.head_for(c, now_us)
                 self._tell(ended, "stalled")
+                if self.targets.recovery_wanted and not tight:
+                    self._spare_hopeless_recoveries(start)
                 if self.targets.recovery_wanted:
                     return Plan(self.targets.target, np.zeros((0, 2)), False, recover=True)
                 if self.targets.target is None:
@@ -145,6 +147,8 @@ class Planner:
                 self._tell(target, "unreachable")
             candidates = [k for k in candidates if (k.x_m, k.y_m) != key and not self.waypoints.is_banned(k.x_m, k.y_m)]
         self.targets.target = None
+        if self.targets.recovery_wanted and not tight:
+            self._spare_hopeless_recoveries(start)
         if self.targets.recovery_wanted:
             return Plan(None, np.zeros((0, 2)), False, recover=True)
         if self.targets.strikes_pending():
@@ -164,6 +168,23 @@ class Planner:
         if self._head_for_far_frontier(view, x_m, y_m, now_us):
             return Plan(None, np.zeros((0, 2)), False)  # the next cycle heads there
         return Plan(None, np.zeros((0, 2)), True)
+
+    def _spare_hopeless_recoveries(self, start: tuple[int, int]) -> None:
+        """Targets in the window that ask for a recovery but that not even tight paths (the
+        most room there can be) reach from here go without one. A recovery's worth is its
+        tight retry: the LiDAR sees all round already, so turning on the spot shows little
+        new, and the retry would crawl at min_speed_mps for recovery_retry_s towards a place
+        the map walls in."""
+        layers = self.map.layers(tight=True)
+        traversable = layers.traversable
+        traversable[start] = True
+        reachable = kernels.reachable_cells(traversable, start[0], start[1])
+        hopeless = set()
+        for key in self.targets.waiting_for_recovery():
+            wi, wj = self.map.cell_of(*key)
+            if self._in_window(wi, wj) and not reachable[wi, wj]:
+                hopeless.add(key)
+        self.targets.no_recovery_for(hopeless)
 
     def _head_for_far_frontier(self, view: PlanningView, x_m: float, y_m: float, now_us: int) -> bool:
         """A robot about to stop: a frontier its body can reach anywhere in what it has

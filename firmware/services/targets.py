@@ -68,6 +68,15 @@ class TargetKeeper:
         """A target failed for the first time: recover (and retry) before giving it up."""
         return bool(self._wanting_recovery)
 
+    def waiting_for_recovery(self) -> frozenset[tuple[float, float]]:
+        """The targets (positions) whose first failure asks for a recovery."""
+        return frozenset(self._wanting_recovery)
+
+    def no_recovery_for(self, keys: set[tuple[float, float]]) -> None:
+        """These targets go without a recovery: their next failure gives them up."""
+        self._recovered |= self._wanting_recovery & keys
+        self._wanting_recovery -= keys
+
     def recovery_started(self) -> None:
         """The targets waiting for a recovery have it now: the next failure gives them up."""
         self._recovered |= self._wanting_recovery
