@@ -154,7 +154,9 @@ class StallDetector:
         """Called with each scan and the pose odometry gives for its time. When the wheels
         slipped (odometry counted travel since an earlier scan that the scans do not show):
         where the scans put the robot, (x_m, y_m), and the next stuck() says so; else None."""
-        if self.p.slip_check_m <= 0 or self._last_cmd_v <= 0.05:
+        # Any forward command counts, a crawl too: a body held while it turns slowly towards
+        # its path, commanded a few cm/s, presses on what holds it all the same.
+        if self.p.slip_check_m <= 0 or self._last_cmd_v <= 0.0:
             self._reference = None
             return None
         ref = self._reference
