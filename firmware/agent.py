@@ -71,6 +71,7 @@ class ExplorerAgent:
         self.bumps = 0
         self._last_stall_xy: tuple[float, float] | None = None
         self._stalls_here = 0          # stalls in a row at the same spot
+        self._bumps_forgotten = False  # the bumps were forgotten once, before the robot stopped
         self.link = (LinkLayer(hal.robot_id, radio_profile,
                                tdma=TdmaSchedule.for_team(radio_profile, team_size, hal.robot_id,
                                                           round(1_000_000 / rates.radio_hz)),
@@ -314,6 +315,15 @@ class ExplorerAgent:
         self._last_plan_us = now_us
         plan = self.planner.plan(pose.x_m, pose.y_m, now_us)
         self.scheme.after_plan(pose, now_us)
+        if plan.done and self.local_map.bumps and not self._bumps_forgotten:
+            # Gaps closed by bumps may have held the body back only because the path met
+            # them askew (a drifting pose, a jamb cut close): before it stops, the robot forgets
+            # them once and tries what lies behind them again. A gap the body really does not
+            # fit closes again after its stalls there.
+            self._bumps_forgotten = True
+            self.local_map.forget_bumps()
+            self._last_stall_xy, self._stalls_here = None, 0
+            return
         if plan.done:
             self.follower.clear()
             self.hal.drive.command(0.0, 0.0)

@@ -43,7 +43,7 @@ def test_a_robot_that_cannot_move_marks_the_obstacle_drops_targets_and_stops():
     ranges = np.full(360, 3.0)
     ranges[150:210] = 10.0          # an opening straight ahead: a corridor leading away
     agent = run(ScriptedHal(ranges), 3000)
-    assert agent.bumps >= 1 and agent.local_map.bumps
+    assert agent.bumps >= 1
     stats = agent.stats()
     given_up = stats["targets_stalled"] + stats["targets_unreachable"]
     assert given_up >= 1
@@ -66,10 +66,15 @@ def test_a_stall_against_something_the_lidar_shows_marks_no_bump_and_follows_clo
             break
     assert agent.local_map.bumps == [], "the map has the post already: no bump closes the corridor"
     assert agent.follower.following_closely
-    fake.run(agent, 3000)
+    while not agent.local_map.bumps and fake.t_us < 3000e6:
+        fake.run(agent, fake.t_us / 1e6 + 1.0)
     # Stalled at the same spot again and again: the gap ahead is narrower than the map shows.
-    assert agent.bumps >= STALLS_BEFORE_CLOSING_A_GAP and agent.local_map.bumps
+    assert agent.bumps >= STALLS_BEFORE_CLOSING_A_GAP and agent.local_map.bumps and not agent.done
+    fake.run(agent, 3000)
     assert agent.done, "a robot that really cannot move still drops its targets for good and stops"
+    # Before it stopped it forgot the gap its bumps closed, once: a drifting pose can wedge
+    # the body in a door it fits through (its targets here were dropped already).
+    assert agent.local_map.bumps == []
 
 
 @pytest.mark.parametrize("wall_behind", [False, True])

@@ -250,6 +250,10 @@ class LocalMap:
             self.bumps.append((x_m + distance_m * math.cos(yaw_rad + off), y_m + distance_m * math.sin(yaw_rad + off)))
         del self.bumps[:-self.MAX_BUMP_CELLS]  # bounded memory: the oldest are forgotten first
 
+    def forget_bumps(self) -> None:
+        """Forget every obstacle mark_obstacle_ahead remembered."""
+        self.bumps.clear()
+
     def mark_passed(self, x_m: float, y_m: float) -> None:
         """The body's centre is here now, on a cell the map shows too narrow (a tight path
         after a recovery): remember the cell, as a 4-connected chain with the last one
