@@ -278,12 +278,13 @@ class ExplorerAgent:
         """Driving but not moving. First back off stall_back_off_m where the last scan shows
         room behind: pressing on stops (a real drive strains, its wheels dig in or slip), and
         the next try starts clear of what held it. If the LiDAR shows nothing touching
-        ahead, something the map let through (a gap narrower than it looks at 10 cm cells) is in the way: mark it
-        like a bumper would. If it does show something, the map has it already and the path
-        was cut too close past it: follow the next path closely instead. (A bump there,
-        0.7 m wide, closed the only way out of a room of the Intel lab: one robot, seed 3,
-        ended at 48 % coverage.) Stalled there STALLS_BEFORE_CLOSING_A_GAP times in a row, it
-        marks the bump all the same: the gap is narrower than the map shows."""
+        ahead, something the map let through (a gap narrower than it looks at 10 cm cells)
+        is in the way: mark it like a bumper would. If it does show something, the map has
+        it already and the path was cut too close past it: follow the next path closely
+        instead. (A bump there, 0.7 m wide, closed the only way out of a room of the Intel
+        lab: one robot, seed 3, ended at 48 % coverage.) Stalled there
+        STALLS_BEFORE_CLOSING_A_GAP times in a row, it marks the bump all the same: the gap
+        is narrower than the map shows."""
         reach_m = self.p.robot_radius_m + self.p.resolution_m
         touching = something_within(self._binned_last_scan(), pose.yaw_rad, reach_m)
         again = self._last_stall_xy is not None and \
