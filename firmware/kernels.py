@@ -936,3 +936,116 @@ def distances_to_surface(ref_x, ref_y, normal_x, normal_y, query_x, query_y, cel
         else:
             out[q] = abs((query_x[q] - ref_x[k]) * normal_x[k] + (query_y[q] - ref_y[k]) * normal_y[k])
     return out
+
+
+@njit(cache=True)
+def _block_sum(a, lo, n):
+    """numpy's sum of at most 128 values: below eight in order, else in eight partial sums."""
+    if n < 8:
+        s = 0.0
+        for i in range(lo, lo + n):
+            s += a[i]
+        return s
+    r = a[lo:lo + 8].copy()
+    i = 8
+    while i < n - n % 8:
+        for k in range(8):
+            r[k] += a[lo + i + k]
+        i += 8
+    s = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        s += a[lo + i]
+        i += 1
+    return s
+
+
+@njit(cache=True)
+def pairwise_sum(a, lo, n):
+    """a[lo:lo + n] summed in numpy's order (its pairwise summation: blocks of at most 128,
+    halved at multiples of eight), so that a mean taken here equals numpy's to the bit.
+    numpy recurses; this walks the same tree with a stack (numba's cache cannot hold a
+    recursive function)."""
+    if n <= 128:
+        return _block_sum(a, lo, n)
+    depth = 64                                  # a halving per level: far beyond any array
+    node_lo = np.empty(depth, np.int64)
+    node_n = np.empty(depth, np.int64)
+    node_stage = np.empty(depth, np.int64)      # 0: left half next, 1: right half next, 2: add
+    sums = np.empty(depth, np.float64)
+    nodes = 1
+    done = 0
+    node_lo[0] = lo
+    node_n[0] = n
+    node_stage[0] = 0
+    while nodes > 0:
+        top = nodes - 1
+        size = node_n[top]
+        if size <= 128:
+            sums[done] = _block_sum(a, node_lo[top], size)
+            done += 1
+            nodes -= 1
+            continue
+        half = size // 2
+        half -= half % 8
+        stage = node_stage[top]
+        node_stage[top] = stage + 1
+        if stage == 2:
+            sums[done - 2] = sums[done - 2] + sums[done - 1]
+            done -= 1
+            nodes -= 1
+            continue
+        node_lo[nodes] = node_lo[top] + (0 if stage == 0 else half)
+        node_n[nodes] = half if stage == 0 else size - half
+        node_stage[nodes] = 0
+        nodes += 1
+    return sums[0]
+
+
+@njit(cache=True)
+def surface_normals(px, py, gap_m):
+    """Unit normals of the surface through each point of a scan, from its two neighbours in
+    the scan; NaN at the ends, where a neighbour is gap_m or farther, or where they coincide."""
+    n = px.shape[0]
+    nx = np.full(n, np.nan)
+    ny = np.full(n, np.nan)
+    for k in range(1, n - 1):
+        if math.hypot(px[k] - px[k - 1], py[k] - py[k - 1]) < gap_m and \
+                math.hypot(px[k + 1] - px[k], py[k + 1] - py[k]) < gap_m:
+            tx = px[k + 1] - px[k - 1]
+            ty = py[k + 1] - py[k - 1]
+            length = math.hypot(tx, ty)
+            if length > 0.0:
+                nx[k] = -ty / length
+                ny[k] = tx / length
+    return nx, ny
+
+
+@njit(cache=True)
+def slip_misfits(ref_x, ref_y, turned_x, turned_y, travel_x, travel_y, shares, gap_m, cap_m, cell_m):
+    """The slip check's fit of a scan over an earlier one, for each share of the travel: the
+    scan's points (turned into the earlier robot frame) moved by share * travel, each point's
+    distance to the earlier scan's surface through its nearest point (point to line, capped
+    at cap_m; points whose nearest point has no surface do not count). Returns each share's
+    mean misfit (NaN where no point counts) and how many points counted."""
+    normal_x, normal_y = surface_normals(ref_x, ref_y, gap_m)
+    n = turned_x.shape[0]
+    misfit = np.empty(shares.shape[0], np.float64)
+    counted = np.zeros(shares.shape[0], np.int64)
+    moved_x = np.empty(n, np.float64)
+    moved_y = np.empty(n, np.float64)
+    on_surface = np.empty(n, np.float64)
+    for s in range(shares.shape[0]):
+        dx = shares[s] * travel_x
+        dy = shares[s] * travel_y
+        for q in range(n):
+            moved_x[q] = turned_x[q] + dx
+            moved_y[q] = turned_y[q] + dy
+        distance = distances_to_surface(ref_x, ref_y, normal_x, normal_y, moved_x, moved_y, cell_m)
+        m = 0
+        for q in range(n):
+            if not math.isnan(distance[q]):
+                on_surface[m] = min(distance[q], cap_m)
+                m += 1
+        counted[s] = m
+        misfit[s] = pairwise_sum(on_surface, 0, m) / m if m > 0 else np.nan
+    return misfit, counted

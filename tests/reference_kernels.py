@@ -230,3 +230,31 @@ def crack_contours(free, occupied):
                     break
             starts.append(len(corners))
     return (np.array(corners, np.int64).reshape(-1, 2), np.array(types, np.int8), np.array(starts, np.int64))
+
+
+def slip_misfits(ref_x, ref_y, turned_x, turned_y, travel_x, travel_y, shares, gap_m, cap_m, cell_m):
+    """The slip check's fit in numpy, as the firmware first wrote it: neighbours' normals,
+    every share's moved points at once, the nearest reference point by brute force (lowest
+    index on a tie), capped distances, numpy means."""
+    points = np.column_stack((ref_x, ref_y))
+    normals = np.full(points.shape, np.nan)
+    if len(points) >= 3:
+        before, after = points[:-2], points[2:]
+        near = (np.hypot(*(points[1:-1] - before).T) < gap_m) & (np.hypot(*(after - points[1:-1]).T) < gap_m)
+        tangent = after - before
+        length = np.hypot(tangent[:, 0], tangent[:, 1])
+        ok = near & (length > 0.0)
+        normals[1:-1][ok] = np.column_stack((-tangent[ok, 1], tangent[ok, 0])) / length[ok, None]
+    turned = np.column_stack((turned_x, turned_y))
+    moved = turned[None, :, :] + shares[:, None, None] * np.array([travel_x, travel_y])
+    misfit = np.full(len(shares), np.nan)
+    counted = np.zeros(len(shares), np.int64)
+    for s in range(len(shares)):
+        d2 = ((moved[s][:, None, :] - points[None, :, :]) ** 2).sum(axis=2)
+        nearest = np.argmin(d2, axis=1)
+        along = np.abs(((moved[s] - points[nearest]) * normals[nearest]).sum(axis=1))
+        on_surface = ~np.isnan(along)
+        counted[s] = np.count_nonzero(on_surface)
+        if counted[s]:
+            misfit[s] = np.minimum(along, cap_m)[on_surface].mean()
+    return misfit, counted

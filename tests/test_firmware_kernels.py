@@ -467,3 +467,38 @@ def test_nearest_points_matches_a_brute_force_search(seed):
                                      float(rng.uniform(0.05, 1.0)))
         d2 = ((query[:, None, :] - ref[None, :, :]) ** 2).sum(axis=2)
         assert np.array_equal(got, np.argmin(d2, axis=1))
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 15, 16, 17, 127, 128, 129, 255, 256, 257, 1000, 3001])
+def test_pairwise_sum_equals_numpys_sum_to_the_bit(n):
+    a = np.random.default_rng(n).lognormal(0.0, 3.0, n)
+    assert kernels.pairwise_sum(a, 0, n) == np.add.reduce(a)
+    if n > 3:
+        assert kernels.pairwise_sum(a, 2, n - 3) == np.add.reduce(a[2:n - 1].copy())
+
+
+def _scan(rng, n):
+    """A LiDAR-like scan: walls at a few distances, with gaps and edges."""
+    angles = np.sort(rng.uniform(-np.pi, np.pi, n))
+    ranges = np.where(rng.random(n) < 0.8, rng.uniform(0.5, 6.0) + 0.3 * np.sin(3 * angles), rng.uniform(0.3, 9.0, n))
+    return ranges * np.cos(angles), ranges * np.sin(angles)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_slip_misfits_equal_the_numpy_reference_to_the_bit(seed):
+    """The slip check's fit, every share's mean misfit and count, equal to the bit to the
+    plain numpy version (brute-force nearest points, numpy means): the firmware decides on
+    these numbers, so a trajectory must not depend on which one ran."""
+    rng = np.random.default_rng(seed)
+    shares = np.linspace(0.0, 1.0, 11)
+    for _ in range(10):
+        rx, ry = _scan(rng, int(rng.integers(2, 400)))
+        tx, ty = rx + rng.normal(0.0, 0.02, rx.shape), ry + rng.normal(0.0, 0.02, ry.shape)
+        keep = rng.random(rx.shape) < 0.9
+        tx, ty = tx[keep].copy(), ty[keep].copy()
+        travel = rng.normal(0.0, 0.05, 2)
+        args = (rx, ry, tx, ty, float(travel[0]), float(travel[1]), shares, 0.3, 0.2)
+        got_misfit, got_counted = kernels.slip_misfits(*args, 0.2)
+        want_misfit, want_counted = ref.slip_misfits(*args, 0.2)
+        assert np.array_equal(got_counted, want_counted)
+        assert np.array_equal(got_misfit, want_misfit, equal_nan=True)

@@ -194,41 +194,20 @@ def travel_share_seen(ref_points: np.ndarray, points: np.ndarray, dx_m: float, d
     fits clearly better than the whole travel (SLIP_CLEAR_FIT), e.g. in a corridor without
     features, where every share fits alike."""
     c, s = math.cos(ref_yaw_rad), math.sin(ref_yaw_rad)
-    travel = np.array([c * dx_m + s * dy_m, -s * dx_m + c * dy_m])       # in the earlier frame
     turn = _wrap(yaw_rad - ref_yaw_rad)
     ct, st = math.cos(turn), math.sin(turn)
-    turned = points @ np.array([[ct, st], [-st, ct]])                    # rotated into it
-    normals = surface_normals(ref_points)
-    moved = (turned[None, :, :] + SLIP_SHARES[:, None, None] * travel).reshape(-1, 2)     # by share
-    along_normal_m = kernels.distances_to_surface(
+    turned = points @ np.array([[ct, st], [-st, ct]])                    # rotated into the earlier frame
+    misfit, counted = kernels.slip_misfits(
         np.ascontiguousarray(ref_points[:, 0]), np.ascontiguousarray(ref_points[:, 1]),
-        np.ascontiguousarray(normals[:, 0]), np.ascontiguousarray(normals[:, 1]),
-        moved[:, 0].copy(), moved[:, 1].copy(), SLIP_NEAREST_CELL_M).reshape(len(SLIP_SHARES), -1)
-    on_surface = ~np.isnan(along_normal_m)
-    if (np.count_nonzero(on_surface, axis=1) < SLIP_MIN_BEAMS).any():
+        np.ascontiguousarray(turned[:, 0]), np.ascontiguousarray(turned[:, 1]),
+        c * dx_m + s * dy_m, -s * dx_m + c * dy_m, SLIP_SHARES,
+        SLIP_SURFACE_GAP_M, SLIP_MISFIT_CAP_M, SLIP_NEAREST_CELL_M)
+    if (counted < SLIP_MIN_BEAMS).any():
         return None
-    capped_m = np.minimum(along_normal_m, SLIP_MISFIT_CAP_M)
-    misfit = np.array([capped_m[k][on_surface[k]].mean() for k in range(len(SLIP_SHARES))])
     best = int(np.argmin(misfit))
     if misfit[best] > SLIP_CLEAR_FIT * misfit[-1]:
         return None
     return float(SLIP_SHARES[best])
-
-
-def surface_normals(points: np.ndarray) -> np.ndarray:
-    """Unit normals of the surface through each hit, from its neighbours in the scan (NaN
-    where a neighbour is missing or farther than SLIP_SURFACE_GAP_M)."""
-    normals = np.full(points.shape, np.nan)
-    if len(points) < 3:
-        return normals
-    before, after = points[:-2], points[2:]
-    near = (np.hypot(*(points[1:-1] - before).T) < SLIP_SURFACE_GAP_M) & \
-        (np.hypot(*(after - points[1:-1]).T) < SLIP_SURFACE_GAP_M)
-    tangent = after - before
-    length = np.hypot(tangent[:, 0], tangent[:, 1])
-    ok = near & (length > 0.0)
-    normals[1:-1][ok] = np.column_stack((-tangent[ok, 1], tangent[ok, 0])) / length[ok, None]
-    return normals
 
 
 def _wrap(a_rad):
