@@ -76,6 +76,8 @@ class Replica:
     def __init__(self) -> None:
         self._vertices: dict[int, PolyRecord] = {}
         self._blocks: dict[int, AliveRecord] = {}
+        self.version = 0        # counts the records that changed what is held
+        self._rings: tuple[int, list[list[Vertex]]] | None = None    # (version, rings)
 
     def add(self, record: PolyRecord | AliveRecord) -> None:
         """Hold a record (older states of the same vertex or block are dropped)."""
@@ -83,10 +85,12 @@ class Replica:
             held = self._blocks.get(record.block)
             if held is None or newer(record.stamp, held.stamp):
                 self._blocks[record.block] = record
+                self.version += 1
             return
         held = self._vertices.get(record.vertex_id)
         if held is None or newer(record.stamp, held.stamp):
             self._vertices[record.vertex_id] = record
+            self.version += 1
 
     def _alive(self, r: PolyRecord) -> bool:
         block = self._blocks.get(r.vertex_id // ALIVE_BLOCK_IDS)
@@ -117,7 +121,13 @@ class Replica:
         return {tail: head for tail, (head, _) in succ.items()}
 
     def rings(self) -> list[list[Vertex]]:
-        """The sender's rings as this robot knows them (see the module's rules)."""
+        """The sender's rings as this robot knows them (see the module's rules); the same
+        list until a record changes what is held (do not change it)."""
+        if self._rings is None or self._rings[0] != self.version:
+            self._rings = (self.version, self._derive_rings())
+        return self._rings[1]
+
+    def _derive_rings(self) -> list[list[Vertex]]:
         alive = {v: r for v, r in self._vertices.items() if self._alive(r)}
         succ = self._claims(alive)
         rings = []

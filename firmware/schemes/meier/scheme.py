@@ -90,6 +90,13 @@ class Meier(Scheme):
         self._refresh_credit = 0.0
         self._outbox_us = self._news_until_us = 0     # the outbox task's clock; has_news until then
         self.replicas: dict[int, Replica] = {}
+        # Per teammate, kept while its replica's version is the same: its rings as arrays,
+        # and their raster on the team layer's last grid.
+        self._sender_arrays: dict[int, tuple[int, tuple | None]] = {}
+        self._sender_rasters: dict[int, tuple[tuple, np.ndarray]] = {}
+        # The team layer on the last grid asked for (the window's, asked for several times
+        # a cycle): (the layer it came from, the grid, the cells).
+        self._team_cells_held: tuple[tuple, tuple, np.ndarray] | None = None
         self._team: tuple[np.ndarray, int, int] | None = None     # team layer (coarse), its row0, col0
         self._team_stale = False
         self._drawn_us = -(1 << 62)                 # when the team layer was last drawn (outbox clock)
@@ -199,14 +206,13 @@ class Meier(Scheme):
         self._team_news = True
         per_sender = []
         for sender in sorted(self.replicas):
-            rings = self.replicas[sender].rings()
-            if rings:
-                per_sender.append(([np.array([(v.x_lat, v.y_lat) for v in ring], np.int64) for ring in rings],
-                                   [np.array([v.edge_type == 1 for v in ring]) for ring in rings]))
+            corners = self._corners_of(sender)
+            if corners is not None:
+                per_sender.append((sender, corners))
         if not per_sender:
             self._team = None
             return
-        corners = np.concatenate([np.concatenate(r) for r, _ in per_sender])
+        corners = np.concatenate([c[0] for _, c in per_sender])
         (c_lo, r_lo), (c_hi, r_hi) = corners.min(axis=0) - 1, corners.max(axis=0) + 1
         # No farther than meier_team_extent_m from the window's centre: what teammates say
         # beyond is of no use yet, and a record's coordinates reach 3 km.
@@ -220,10 +226,34 @@ class Meier(Scheme):
             return
         shape = (r_hi - r_lo, c_hi - c_lo)
         team = np.zeros(shape, np.uint8)
-        min_hole = self.s.params.meier_min_hole_m2 / LATTICE_M ** 2
-        for rings, wall in per_sender:
-            np.maximum(team, rasterise_rings(rings, wall, shape, r_lo, c_lo, min_hole), out=team)
+        for sender, _ in per_sender:
+            np.maximum(team, self._raster_of(sender, shape, r_lo, c_lo), out=team)
         self._team = (team, r_lo, c_lo)
+
+    def _corners_of(self, sender: int) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray]] | None:
+        """A teammate's rings as arrays: all corners, each ring's corners and wall flags;
+        None if it has none. Kept until its records change."""
+        replica = self.replicas[sender]
+        held = self._sender_arrays.get(sender)
+        if held is None or held[0] != replica.version:
+            rings = replica.rings()
+            arrays = None
+            if rings:
+                lattice = [np.array([(v.x_lat, v.y_lat) for v in ring], np.int64) for ring in rings]
+                arrays = (np.concatenate(lattice), lattice, [np.array([v.edge_type == 1 for v in ring]) for ring in rings])
+            held = self._sender_arrays[sender] = (replica.version, arrays)
+        return held[1]
+
+    def _raster_of(self, sender: int, shape: tuple[int, int], r_lo: int, c_lo: int) -> np.ndarray:
+        """A teammate's rings rasterised on the team layer's grid; drawn again only when its
+        records or the grid changed (most news is one teammate's)."""
+        key = (self.replicas[sender].version, shape, r_lo, c_lo)
+        held = self._sender_rasters.get(sender)
+        if held is None or held[0] != key:
+            _, lattice, wall = self._corners_of(sender)
+            min_hole = self.s.params.meier_min_hole_m2 / LATTICE_M ** 2
+            held = self._sender_rasters[sender] = (key, rasterise_rings(lattice, wall, shape, r_lo, c_lo, min_hole))
+        return held[1]
 
     def _team_cells(self, row0: int, col0: int, rows: int, cols: int) -> np.ndarray | None:
         """The team layer on the fine grid of `rows` x `cols` anchored at global fine cell
@@ -231,6 +261,10 @@ class Meier(Scheme):
         drawn = self._team_layer()
         if drawn is None:
             return None
+        grid = (row0, col0, rows, cols)
+        held = self._team_cells_held
+        if held is not None and held[0] is drawn and held[1] == grid:
+            return held[2]
         team, t_r0, t_c0 = drawn
         cr = (row0 + np.arange(rows)) // self._k - t_r0
         cc = (col0 + np.arange(cols)) // self._k - t_c0
@@ -239,6 +273,7 @@ class Meier(Scheme):
         out = np.zeros((rows, cols), np.uint8)
         if rin.any() and cin.any():
             out[np.ix_(rin, cin)] = team[np.ix_(cr[rin], cc[cin])]
+        self._team_cells_held = (drawn, grid, out)
         return out
 
     # --- the team layer as the local map sees it (services.local_map.TeamView) ----------
