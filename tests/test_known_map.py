@@ -133,3 +133,21 @@ def test_a_frontier_the_scheme_leaves_to_a_teammate_does_not_stop_the_robot_shor
     assert not rig.plan(5.0, 0.0, 1_000_000).done
     heading = rig.plan(5.0, 0.0, 2_000_000)
     assert heading.target is not None and abs(heading.target.x_m - 60.0) < 1.0
+
+
+def test_a_hole_no_beam_reached_in_a_room_seen_all_round_is_no_frontier():
+    """A speck of floor no beam reached (two cells in the middle of a room), in sight of a
+    chink in the wall beyond which lies unknown ground: the rays from the speck count the
+    unknown through the chink, but what lies behind the speck is the speck. It is no
+    frontier; the doorway into the unknown beyond the other wall is."""
+    local_map = LocalMap(P, 0.0, 0.0)
+    _paint(local_map, -3.2, 3.2, -3.2, 3.2, WALL_LOGODDS)
+    _paint(local_map, -3.0, 3.0, -3.0, 3.0, FREE_LOGODDS)
+    _paint(local_map, -0.1, 0.1, 3.0, 3.2, FREE_LOGODDS)          # a chink 0.2 m wide in the north wall
+    _paint(local_map, -0.05, 0.05, 2.3, 2.45, 0.0)                 # the speck, 0.7 m from the chink
+    _paint(local_map, -0.5, 0.5, -3.2, -3.0, FREE_LOGODDS)        # a doorway in the south wall
+    known = KnownMap(P, local_map)
+    known.refresh(0.0, 0.0, 0)
+    left = known.frontiers()
+    assert len(left.reachable) == 1
+    assert left.reachable[0].stand_xy[1] < -2.0

@@ -81,7 +81,8 @@ def find_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploration
     middles = np.array([_middle_cell(labels, k) for k in groups], np.int64).reshape(-1, 2)
     unseen_cells = kernels.observable_unknown(sight, middles[:, 0], middles[:, 1], params.info_rays,
                                               params.d_cam_m / params.resolution_m)
-    hidden_bit = unseen_cells * params.entropy_per_cell_bit
+    behind = unknown_behind(labels, unknown)[groups]
+    hidden_bit = np.minimum(unseen_cells, behind) * params.entropy_per_cell_bit
     res = params.resolution_m
     reach, unreach = [], []
     yy, xx = np.mgrid[-REACH_CELLS:REACH_CELLS + 1, -REACH_CELLS:REACH_CELLS + 1]
@@ -99,6 +100,33 @@ def find_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploration
         xy = None if stand is None else ((col0 + stand[1] + 0.5) * res, (row0 + stand[0] + 0.5) * res)
         (reach if xy is not None else unreach).append(Frontier(cell, area, bits, xy))
     return Frontiers(tuple(reach), tuple(unreach))
+
+
+def unknown_behind(labels: np.ndarray, unknown: np.ndarray) -> np.ndarray:
+    """Per frontier group (labels: 1..n, 0 elsewhere), how many unknown cells lie behind it:
+    the cells of the unknown regions (8-connected) its cells border; inf for a region that
+    reaches the map's edge (it goes on beyond). What the rays from a frontier's middle count
+    includes unknown seen through other gaps; a hole of a cell or two that no beam reached,
+    walled in by what the robot has seen, hides no more than itself."""
+    regions, n_regions = ndimage.label(unknown, structure=np.ones((3, 3), bool))
+    size = np.bincount(regions.ravel(), minlength=n_regions + 1).astype(np.float64)
+    edge = np.concatenate([regions[0], regions[-1], regions[:, 0], regions[:, -1]])
+    size[edge] = np.inf
+    # (group, region) for every frontier cell and unknown neighbour of it.
+    padded_groups = np.pad(labels, 1)
+    padded_regions = np.pad(regions, 1)
+    rows, cols = labels.shape
+    pairs = []
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            g = padded_groups[1:rows + 1, 1:cols + 1]
+            r = padded_regions[1 + di:rows + 1 + di, 1 + dj:cols + 1 + dj]
+            both = (g > 0) & (r > 0)
+            pairs.append(np.column_stack((g[both], r[both])))
+    pairs = np.unique(np.concatenate(pairs), axis=0)
+    behind = np.zeros(int(labels.max()) + 1)
+    np.add.at(behind, pairs[:, 0], size[pairs[:, 1]])
+    return behind
 
 
 def _middle_cell(labels: np.ndarray, k: int) -> tuple[int, int]:
