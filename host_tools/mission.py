@@ -26,7 +26,7 @@ from hal.sim.clock import SimClock
 from hal.sim.factory import build_sim_hal
 from hal.sim.mesh import SimMeshBus
 from hal.sim.radio import SimRadioModem
-from host_tools import polygon_metrics
+from host_tools import polygon_metrics, region_oracle
 from host_tools.capture import CaptureWriter
 from host_tools.cmd_inspect import sender_stats
 from radio_sim.air_log import AirFrame
@@ -260,8 +260,13 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         if cfg.serial_lidar or cfg.serial_uwb:
             sensors, lidars, rangers = open_serial_sensors(world, clock, lidar=cfg.serial_lidar, uwb=cfg.serial_uwb)
         agents = []
+        doorways = None         # the ground truth's, for schemes that load a region map
         for i in range(cfg.robots):
             scheme = build_scheme(cfg.strategy)
+            if "region_map" in scheme.needs_of():
+                if doorways is None:
+                    doorways = region_oracle.doorways(occ, params)
+                scheme.load_region_map(doorways)
             hal = build_sim_hal(world, i, radio=radios[i], frame=cfg.frames)
             if cfg.serial_lidar:
                 hal = dataclasses.replace(hal, lidar=lidars[i])

@@ -67,7 +67,7 @@ class SweepSpec:
 # The code whose behaviour a trial measures: the firmware, the simulated hardware and world,
 # the radio channel and the mission harness. Host-side reporting is left out, so a change to
 # how tables are drawn does not throw finished trials away.
-_MEASURED_CODE = ("firmware", "hal", "world_sim", "radio_sim", "host_tools/mission.py")
+_MEASURED_CODE = ("firmware", "hal", "world_sim", "radio_sim", "host_tools/mission.py", "host_tools/region_oracle.py")
 
 
 def code_fingerprint(root: Path = Path(__file__).resolve().parents[1]) -> str:

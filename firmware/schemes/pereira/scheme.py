@@ -20,9 +20,8 @@ Beyond the local window it routes along a graph of its own places.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -33,9 +32,9 @@ from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, PRIORITY_STAT
 from firmware.schemes.pereira.choice import CONFLICT_RANK, OTHER, Whereabouts, categorise, conflicts
 from firmware.schemes.pereira.gates import GateTracker, detect_gates, place_clear_dm
 from firmware.schemes.pereira.gossip import Holdings
-from firmware.schemes.pereira.params import PARAMS
-from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_MAX_DM, OSEQ_BITS, Claim, Gate, Intent, Place,
-                                              Summary, dm, serial_newer, typed, values_of)
+from firmware.schemes.pereira.params import with_tuning
+from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_MAX_DM, ORACLE_ORIGIN, OSEQ_BITS, Claim,
+                                              Gate, Intent, Place, Summary, dm, encode, serial_newer, typed, values_of)
 from firmware.schemes.pereira.regions import RegionGraph
 from firmware.schemes.pereira.store import Store
 from firmware.services.pose import TravelMilestones
@@ -52,15 +51,47 @@ _OWN_TYPES = ("place", "gate", "claim")
 class Pereira(Scheme):
     name = "pereira"
     doc = "Pereira et al.'s region statuses merged without clocks, frontier categories and eq. (3), over LoRa"
-    variants = {"": "regions from gates and places, statuses as claims, categories and eq. (3), gossip for multi-hop"}
+    variants = {"": "regions from gates and places, statuses as claims, categories and eq. (3), gossip for multi-hop",
+                "oracle": "the same, with regions cut at the doorways of a region map the host loads (the ground "
+                          "truth's: the paper's oracle condition) instead of gates the robots find"}
     dialect = DIALECT
     needs = frozenset({"radio", "shared_frame"})
+
+    def __init__(self, variant: str = "") -> None:
+        super().__init__(variant)
+        self._doorways: tuple[Gate, ...] | None = None
+
+    def needs_of(self) -> frozenset[str]:
+        return self.needs | {"region_map"} if self.variant == "oracle" else self.needs
+
+    def load_region_map(self, doorways: Sequence[tuple[int, int, int, int]]) -> None:
+        """The team's region map (the oracle variant): doorways in the shared frame as a gate
+        record carries them, (x_dm, y_dm, dir_code, half_2cm), e.g. host_tools.region_oracle's
+        doorways of the ground truth. They become gate records of origin ORACLE_ORIGIN, held
+        by every robot from the start and never sent; the robot then finds no gates of its
+        own. Given before the agent starts; ValueError for a value a gate record cannot carry."""
+        if self.variant != "oracle":
+            raise ValueError(f"scheme {self.spec} finds its own gates; only {self.name}:oracle loads a region map")
+        gates = []
+        for k, d in enumerate(doorways):
+            g = Gate(ORACLE_ORIGIN, k + 1, *(int(v) for v in d))
+            try:
+                encode(g)
+            except ValueError as exc:
+                raise ValueError(f"region map: doorway {k + 1} {tuple(d)}: {exc}") from None
+            gates.append(g)
+        if len(gates) >= 1 << OSEQ_BITS:
+            raise ValueError(f"region map: {len(gates)} doorways, at most {(1 << OSEQ_BITS) - 1}")
+        self._doorways = tuple(gates)
 
     def attach(self, services: Services) -> None:
         super().attach(services)
         p = services.params
-        self.pp = dataclasses.replace(PARAMS, widening_kappa=p.pereira_widening_kappa)
-        self.store = Store(params=self.pp)
+        if self.variant == "oracle" and self._doorways is None:
+            raise ValueError(f"scheme {self.spec} needs the team's region map: give it with load_region_map "
+                             "before the robot starts")
+        self.pp = with_tuning(p.pereira_widening_kappa)
+        self.store = Store(self._doorways or (), params=self.pp)
         self.holdings = Holdings()
         self.tracker = GateTracker(self.pp)
         self.where = Whereabouts(p.pereira_margin_m)
@@ -134,8 +165,8 @@ class Pereira(Scheme):
     def _task_gates(self, now_us: int) -> None:
         """Gates in the robot's own window; one record for each newly confirmed gate the
         region graph does not hold yet."""
-        if self._finished or not self.s.has_planned():
-            return
+        if self._finished or not self.s.has_planned() or self._doorways is not None:
+            return      # (the oracle variant's regions are the region map's)
         lm, p = self.s.local_map, self.s.params
         # Only around the robot, where its map changes (the sensor's reach, d_cam_m, and a
         # gate's widening radius beyond): gates farther off were looked at when the robot
@@ -161,8 +192,8 @@ class Pereira(Scheme):
         me = self.s.robot_id
         if values["sender_id"] == me:
             return      # own records relayed back: this robot's view of them is its own (loop rule)
-        if values["sender_id"] == EMPTY_ORIGIN:
-            return      # no robot: the id marks an empty summary slot, so it could never be summarised
+        if values["sender_id"] in (EMPTY_ORIGIN, ORACLE_ORIGIN):
+            return      # no robot: an empty summary slot's id, or the region map's (loaded, never heard)
         if rtype == "intent":
             it = typed(rtype, values)
             held = self._intents.get(it.sender_id)
@@ -401,7 +432,8 @@ class Pereira(Scheme):
     # --- for the host -----------------------------------------------------------------
     def stats(self) -> dict[str, int]:
         graph = self.store.graph()
-        return {**self.counts, "records_held": len(self.store), "regions": sum(not r.virtual for r in graph.regions),
+        return {**self.counts, "records_held": len(self.store), "map_doorways": len(self._doorways or ()),
+                "regions": sum(not r.virtual for r in graph.regions),
                 "virtual_regions": sum(r.virtual for r in graph.regions), "gates_held": len(graph.gates),
                 "regions_explored_by_others": len(self._explored_by_others())}
 
