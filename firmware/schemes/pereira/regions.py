@@ -30,8 +30,8 @@ the same records hold the identical graph, bit for bit (`RegionGraph.digest`).
    region stays visited.
 
 `RegionGraph.label` places a point in a region for private decisions (nearest place with
-no gate between, else the virtual region beyond the gate crossed): the spec's label grid
-(5.2 d) is not built. Not here yet: routing over the graph.
+no gate between, else the virtual region beyond the gate crossed) where the robot's label
+grid (labels.py, 5.2 d) does not reach. Not here yet: routing over the graph.
 """
 from __future__ import annotations
 
@@ -284,6 +284,10 @@ class RegionGraph:
             cached = cKDTree(self.places[:, :2].astype(np.float64))
             object.__setattr__(self, "_tree", cached)
         return cached
+
+    def virtual_gate(self, k: int) -> tuple[int, int]:
+        """(gate index, side) of virtual region k."""
+        return self._virtual_gate[k]
 
     @property
     def _virtual_gate(self) -> dict[int, tuple[int, int]]:

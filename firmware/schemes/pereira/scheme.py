@@ -32,6 +32,8 @@ from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, PRIORITY_STAT
 from firmware.schemes.pereira.choice import CONFLICT_RANK, OTHER, Whereabouts, categorise, conflicts
 from firmware.schemes.pereira.gates import GateTracker, detect_gates, place_clear_dm
 from firmware.schemes.pereira.gossip import Holdings
+from firmware.schemes.pereira.labels import NONE as NO_LABEL
+from firmware.schemes.pereira.labels import label_grid
 from firmware.schemes.pereira.params import with_tuning
 from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_MAX_DM, ORACLE_ORIGIN, OSEQ_BITS, Claim,
                                               Gate, Intent, Place, Summary, dm, encode, serial_newer, typed, values_of)
@@ -107,6 +109,7 @@ class Pereira(Scheme):
         self._clean: dict[tuple[int, ...], int] = {}         # region id -> cycles in a row it looked explored
         self._category: dict[tuple[float, float], int] = {}  # this cycle's candidates' categories
         self._sight: np.ndarray | None = None
+        self._grid: tuple | None = None                      # graph, cycle time, row0, col0, label grid
         self._xy = (0.0, 0.0)                                # the robot's position at the last plan
         self._view_key: tuple | None = None
         self._explored_others: set[int] = set()
@@ -271,9 +274,30 @@ class Pereira(Scheme):
             self._view_key = key
         return self._explored_others
 
+    def _label_grid(self, graph: RegionGraph, sight: np.ndarray, now_us: int) -> None:
+        """This cycle's label grid (labels.py), built once per planning cycle and graph."""
+        g = self._grid
+        if g is not None and g[0] is graph and g[1] == now_us:
+            return
+        lm = self.s.local_map
+        self._grid = (graph, now_us, lm.row0, lm.col0,
+                      label_grid(sight, lm.row0, lm.col0, self.s.params.resolution_m, graph))
+
     def _labels(self, graph: RegionGraph, xy: list[tuple[float, float]]) -> list[int | None]:
+        """Each point's region: the label grid's where it has one for this graph, else the
+        nearest place with no gate between (RegionGraph.label)."""
         reach = int(round(self.s.params.pereira_label_reach_m * 10))
-        return [graph.label(dm(x), dm(y), reach) for x, y in xy]
+        g = self._grid
+        if g is None or g[0] is not graph or not xy:
+            return [graph.label(dm(x), dm(y), reach) for x, y in xy]
+        _graph, _t, row0, col0, grid = g
+        res = self.s.params.resolution_m
+        out = []
+        for x, y in xy:
+            i, j = int(math.floor(y / res)) - row0, int(math.floor(x / res)) - col0
+            k = int(grid[i, j]) if 0 <= i < grid.shape[0] and 0 <= j < grid.shape[1] else NO_LABEL
+            out.append(k if k != NO_LABEL else graph.label(dm(x), dm(y), reach))
+        return out
 
     def _position(self) -> tuple[float, float]:
         return self._xy
@@ -290,6 +314,7 @@ class Pereira(Scheme):
         if not others:
             return
         graph = self.store.graph()
+        self._label_grid(graph, view.sight, view.now_us)
         alone = not self.s.roster.any_active(view.now_us)
         keep = []
         for w, r in zip(items, self._labels(graph, [(w.x_m, w.y_m) for w in items])):
@@ -316,7 +341,8 @@ class Pereira(Scheme):
         self._xy = (view.x_m, view.y_m)
         self._sight = view.sight
         graph = self.store.graph()
-        here = graph.label(dm(view.x_m), dm(view.y_m), int(round(p.pereira_label_reach_m * 10)))
+        self._label_grid(graph, view.sight, view.now_us)
+        (here,) = self._labels(graph, [(view.x_m, view.y_m)])
         self.where.update(graph, here, view.x_m, view.y_m)
         current, previous = self.where.indices(graph)
         labels = self._labels(graph, [(c.x_m, c.y_m) for c in own])
@@ -340,12 +366,11 @@ class Pereira(Scheme):
         this robot's graph, A12); stale intents and finished robots left out (A10)."""
         p = self.s.params
         done = {rid for rid, m in self.s.roster.members().items() if m.done}
-        reach = int(round(p.pereira_label_reach_m * 10))
         out: dict[int, list[tuple[float, int]]] = {}
         for rid, (it, heard_us) in sorted(self._intents.items()):
             if it.state != EXPLORING or rid in done or now_us - heard_us > p.pereira_intent_expiry_s * 1e6:
                 continue
-            h = graph.label(it.goal_x_dm, it.goal_y_dm, reach)
+            (h,) = self._labels(graph, [(it.goal_x_dm / 10.0, it.goal_y_dm / 10.0)])
             if h is not None:
                 out.setdefault(h, []).append((it.goal_dist_dm / 10.0, rid))
         return out
