@@ -10,7 +10,11 @@ region known in its window, none of its waypoints there, two cycles in a row) an
 or takes it back, in a `claim`; the claims it hears give each region's e^o (status.py: eq.
 1 and 2, the same-robot override, the loop rule, no clock).
 
-Its planning stage: waypoints in regions a teammate's claim calls explored are left to the
+The oracle variant (`pereira:oracle`) holds the doorways of a region map the host loads
+as gate records of origin 254 from the start and finds no gates of its own.
+
+Its planning stage places waypoints in regions by its label grid (labels.py), then:
+waypoints in regions a teammate's claim calls explored are left to the
 team (A5, A6; with no teammate exploring, the rich ones are taken back); the others are
 ranked by category (f^fu, f^c, f^fs, f^o) and by Algorithm 1's conflict rule with eq. (3)
 against the `intent`s teammates broadcast (choice.py); the shared choice takes the
