@@ -77,7 +77,7 @@ def code_fingerprint(root: Path = Path(__file__).resolve().parents[1]) -> str:
     files: list[Path] = []
     for name in _MEASURED_CODE:
         p = root / name
-        files += sorted(p.rglob("*.py")) if p.is_dir() else [p]
+        files += sorted(p.rglob("*.py")) if p.is_dir() else [p] if p.exists() else []
     digest = hashlib.sha256()
     for f in files:
         digest.update(f.relative_to(root).as_posix().encode() + b"\0" + _code_only(f.read_bytes()) + b"\0")
