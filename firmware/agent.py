@@ -87,11 +87,12 @@ class ExplorerAgent:
 
     def _has(self, need: str, radio_profile: RadioProfile | None) -> bool:
         """Is `need` (schemes.base.NEEDS) met? A shared frame shows only in the odometry's
-        samples, so setup() checks that one."""
+        samples, so setup() checks that one; a region map is the scheme's own, checked when it
+        is attached."""
         hal = self.hal
         if need in ("radio", "relay"):
             return hal.has("radio") and radio_profile is not None
-        return need == "shared_frame" or hal.has(need)
+        return need in ("shared_frame", "region_map") or hal.has(need)
 
     # --- lifecycle --------------------------------------------------------------------
     def setup(self) -> None:

@@ -7,8 +7,8 @@ import sys
 import threading
 
 from host_tools.mission import MissionConfig, run_mission
-from host_tools.options import (FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, ROBOTS, SCHEME, SEED, SET,
-                                WHEEL_SLIP, Opt, add_options)
+from host_tools.options import (FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEME, SEED,
+                                SET, WHEEL_SLIP, Opt, add_options)
 from host_tools.overrides import combine_overrides, describe, params_help, params_with
 from host_tools.progress import progress_bar
 from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, strict_dumps, write_text
@@ -16,7 +16,7 @@ from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, str
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as a shell reports a command Ctrl-C ended
 
 OPTIONS = (
-    MAP, ROBOTS, SEED, MAX_SIM_S, RADIO, SCHEME, FRAMES,
+    MAP, ROBOTS, SEED, MAX_SIM_S, RADIO, RANGE_M, SCHEME, FRAMES,
     Opt("--serial-radio", "flag", "drive every robot's radio through a virtual RN2483 modem on a pseudo-terminal"),
     Opt("--serial-lidar", "flag", "read every robot's LiDAR through the RPLIDAR driver and an emulated scanner on a "
         "pseudo-terminal"),
@@ -56,7 +56,7 @@ def main(args: argparse.Namespace) -> int:
                         strategy=args.strategy, frames=args.frames, serial_radio=args.serial_radio,
                         serial_lidar=args.serial_lidar, serial_uwb=args.serial_uwb,
                         capture_path=None if args.capture is None else str(args.capture),
-                        wheel_slip_frac=args.wheel_slip, lidar_phase_ms=args.lidar_phase_ms)
+                        wheel_slip_frac=args.wheel_slip, lidar_phase_ms=args.lidar_phase_ms, range_m=args.range_m)
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
     state = {"last": 0.0, "stop": False}
 
@@ -143,7 +143,8 @@ def format_summary(r: dict) -> str:
     paths = ", ".join(f"{p:.1f}" for p in r["path_length_m"])
     lines = [
         f"map            {r['map']}   (reachable free area {r['reachable_area_m2']:.0f} m²)",
-        f"robots         {r['robots']}   seed {r['seed']}   strategy {r['strategy']}   radio {r['radio']}",
+        f"robots         {r['robots']}   seed {r['seed']}   strategy {r['strategy']}   radio {r['radio']}"
+        + ("" if r.get("range_m") is None else f" within {r['range_m']:g} m"),
         f"coverage       {r['coverage'] * 100:.2f} % of the reachable free area",
         f"path length    {paths} m   (longest {max(r['path_length_m']):.1f} m: this trial's p_max)",
         f"T_total        {r['t_total_s']:.1f} s simulated",

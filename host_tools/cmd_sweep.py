@@ -11,8 +11,8 @@ import sys
 import threading
 from pathlib import Path
 
-from host_tools.options import (LIDAR_PHASE, MAX_SIM_S, QUIET, RADIO, ROBOTS, SCHEMES, SEED_MAX, SET, WHEEL_SLIP,
-                                Opt, add_options, with_default)
+from host_tools.options import (LIDAR_PHASE, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEMES, SEED_MAX, SET,
+                                WHEEL_SLIP, Opt, add_options, with_default)
 from host_tools.overrides import combine_overrides, params_help
 from host_tools.progress import progress_bar
 from host_tools.safe_io import strict_dumps, write_text
@@ -33,7 +33,7 @@ OPTIONS = (
     Opt("--also-radio", "choice", "repeat the trials of the strategies that use the LoRa link (greedy, minpos) on "
         "these profiles and tabulate what they cost against --radio", nargs="+", choices=RADIO.choices, default=[],
         metavar="PROFILE"),
-    MAX_SIM_S, WHEEL_SLIP, LIDAR_PHASE, SET,
+    RANGE_M, MAX_SIM_S, WHEEL_SLIP, LIDAR_PHASE, SET,
     Opt("--jobs", "int", "local worker processes", lo=1, hi=256, default=os.cpu_count() or 1),
     Opt("--ray", "address", "run on a Ray cluster instead: 'local' starts one here, 'auto' finds one, or "
         "HOST:PORT (refused at once if nothing answers there)", metavar="ADDRESS"),
@@ -105,7 +105,7 @@ def main(args: argparse.Namespace) -> int:
         return 2
     spec = SweepSpec(tuple(args.maps), tuple(args.strategies), args.robots, args.seeds, args.radio,
                      args.max_sim_s, args.first_seed, tuple(r for r in args.also_radio if r != args.radio),
-                     overrides, args.wheel_slip, args.lidar_phase_ms)
+                     overrides, args.wheel_slip, args.lidar_phase_ms, args.range_m)
     trials = spec.trials()
     wanted = {trial_key(c, overrides) for c in trials}
     if args.tables_of_code is not None:

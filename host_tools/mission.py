@@ -26,7 +26,7 @@ from hal.sim.clock import SimClock
 from hal.sim.factory import build_sim_hal
 from hal.sim.mesh import SimMeshBus
 from hal.sim.radio import SimRadioModem
-from host_tools import polygon_metrics
+from host_tools import polygon_metrics, region_oracle
 from host_tools.capture import CaptureWriter
 from host_tools.cmd_inspect import sender_stats
 from radio_sim.air_log import AirFrame
@@ -65,6 +65,9 @@ class MissionConfig:
     # LiDAR's first scan this long after the start (then one a period, between the ticks).
     wheel_slip_frac: float = 0.0
     lidar_phase_ms: float = 0.0
+    # A hard radio range in metres on top of the profile (radio_sim.channel.Channel's
+    # max_range_m: the ideal link's disc model); None: the profile's own reach.
+    range_m: float | None = None
 
 
 @dataclass
@@ -121,6 +124,7 @@ class MissionResult:
             "seed": self.config.seed,
             "robots": self.config.robots,
             "radio": self.config.radio,
+            "range_m": self.config.range_m,
             "strategy": self.config.strategy,
             "frames": self.config.frames,
             "world": {"wheel_slip_frac": self.world.params.wheel_slip_frac,
@@ -234,7 +238,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     reachable = reachable_from_starts(occ, poses, robot_radius_m=world_params.robot_radius_m)
     reachable_raw = reachable_from_starts(occ, poses)
     profile = radio_profile(cfg.radio)
-    channel = Channel(profile, cfg.seed, occupancy=occ, loss_rule=loss_rule)
+    channel = Channel(profile, cfg.seed, occupancy=occ, loss_rule=loss_rule, max_range_m=cfg.range_m)
     air_frames: list[AirFrame] = []
     channel.add_sink(air_frames.append)
     capture = None
@@ -256,8 +260,13 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         if cfg.serial_lidar or cfg.serial_uwb:
             sensors, lidars, rangers = open_serial_sensors(world, clock, lidar=cfg.serial_lidar, uwb=cfg.serial_uwb)
         agents = []
+        doorways = None         # the ground truth's, for schemes that load a region map
         for i in range(cfg.robots):
             scheme = build_scheme(cfg.strategy)
+            if "region_map" in scheme.needs_of():
+                if doorways is None:
+                    doorways = region_oracle.doorways(occ, params)
+                scheme.load_region_map(doorways)
             hal = build_sim_hal(world, i, radio=radios[i], frame=cfg.frames)
             if cfg.serial_lidar:
                 hal = dataclasses.replace(hal, lidar=lidars[i])

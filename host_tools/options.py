@@ -255,6 +255,9 @@ SCHEME = Opt("--scheme", "scheme", f"coordination scheme: {_scheme_catalogue()}"
 SCHEMES = Opt("--schemes", "scheme", f"coordination schemes to run (default: {' '.join(LEGACY_STRATEGIES)})",
               nargs="+", default=list(LEGACY_STRATEGIES), aliases=("--strategies",), dest="strategies",
               metavar="NAME[:VARIANT]")
+RANGE_M = Opt("--range-m", "float", "a hard radio range: robots farther apart than this hear nothing from each "
+              "other, on any profile (the ideal link's disc model, as Pereira et al.'s 5 m); default: the profile's "
+              "own reach", unit="m", lo=0.0, lo_open=True, hi=1e6, metavar="M")
 FRAMES = Opt("--frames", "choice", "odometry frames: one shared by the team (start poses measured at deployment), or "
              "each robot's own, unknown to the others", choices=("shared", "own"), default="shared")
 WHEEL_SLIP = Opt("--wheel-slip", "float", WHEEL_SLIP_HELP, lo=0.0, hi=1.0, default=0.0,

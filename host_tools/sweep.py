@@ -49,6 +49,8 @@ class SweepSpec:
     # The simulated world's wheels and LiDAR for every trial (MissionConfig's fields).
     wheel_slip_frac: float = 0.0
     lidar_phase_ms: float = 0.0
+    # The hard radio range of every trial (MissionConfig.range_m; None: the profile's reach).
+    range_m: float | None = None
 
     def lora_strategies(self) -> tuple[str, ...]:
         return tuple(s for s in self.strategies if "radio" in build_scheme(s).needs_of() and "mesh" not in build_scheme(s).needs_of())
@@ -58,14 +60,14 @@ class SweepSpec:
         grid += [(radio, s) for radio in self.also_radios for s in self.lora_strategies()]
         return [MissionConfig(map_spec=m, robots=self.robots, seed=self.first_seed + k, max_sim_s=self.max_sim_s,
                               radio=radio, strategy=s, wheel_slip_frac=self.wheel_slip_frac,
-                              lidar_phase_ms=self.lidar_phase_ms)
+                              lidar_phase_ms=self.lidar_phase_ms, range_m=self.range_m)
                 for radio, s in grid for m in self.maps for k in range(self.seeds)]
 
 
 # The code whose behaviour a trial measures: the firmware, the simulated hardware and world,
 # the radio channel and the mission harness. Host-side reporting is left out, so a change to
 # how tables are drawn does not throw finished trials away.
-_MEASURED_CODE = ("firmware", "hal", "world_sim", "radio_sim", "host_tools/mission.py")
+_MEASURED_CODE = ("firmware", "hal", "world_sim", "radio_sim", "host_tools/mission.py", "host_tools/region_oracle.py")
 
 
 def code_fingerprint(root: Path = Path(__file__).resolve().parents[1]) -> str:
@@ -75,7 +77,7 @@ def code_fingerprint(root: Path = Path(__file__).resolve().parents[1]) -> str:
     files: list[Path] = []
     for name in _MEASURED_CODE:
         p = root / name
-        files += sorted(p.rglob("*.py")) if p.is_dir() else [p]
+        files += sorted(p.rglob("*.py")) if p.is_dir() else [p] if p.exists() else []
     digest = hashlib.sha256()
     for f in files:
         digest.update(f.relative_to(root).as_posix().encode() + b"\0" + _code_only(f.read_bytes()) + b"\0")
@@ -115,12 +117,13 @@ def trial_key(cfg_or_report: MissionConfig | dict, overrides: Overrides = ()) ->
     if isinstance(cfg_or_report, MissionConfig):
         c = cfg_or_report
         return (c.map_spec, c.strategy, c.radio, c.seed, c.robots, float(c.max_sim_s), tuple(overrides),
-                float(c.wheel_slip_frac), round(c.lidar_phase_ms * 1000))
+                float(c.wheel_slip_frac), round(c.lidar_phase_ms * 1000),
+                None if c.range_m is None else float(c.range_m))
     r = cfg_or_report
     world = r.get("world", {})
     return (r["map_spec"], r["strategy"], r["radio"], r["seed"], r["robots"], float(r["max_sim_s"]),
             tuple(sorted(r.get("params_overrides", {}).items())), float(world.get("wheel_slip_frac", 0.0)),
-            int(world.get("lidar_phase_us", 0)))
+            int(world.get("lidar_phase_us", 0)), None if r.get("range_m") is None else float(r["range_m"]))
 
 
 def coverage_floor(coverage: float) -> float:
@@ -430,7 +433,8 @@ def markdown(t: dict) -> str:
     changed = describe(spec.get("overrides", ()))
     world = _world_changed(spec)
     lines = [f"p_max [m] (median over {spec['seeds']} seeds of the longest robot path; {spec['robots']} robots, "
-             f"radio {spec['radio']}" + (f"; explorer parameters changed: {changed}" if changed else "")
+             f"radio {spec['radio']}" + ("" if spec.get("range_m") is None else f" within {spec['range_m']:g} m")
+             + (f"; explorer parameters changed: {changed}" if changed else "")
              + (f"; simulated world: {world}" if world else "")
              + "); in brackets: lowest coverage, missions complete",
              "", "| map | " + " | ".join(spec["strategies"]) + " |", "|---|" + "---|" * len(spec["strategies"])]

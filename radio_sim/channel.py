@@ -31,6 +31,11 @@ Model (LoRaSim, Bor et al. 2016, `full_collision` mode; ns-3 lorawan):
   regardless of range, walls, collisions, half duplex, arming or air settings; injected faults, if any
   were asked for, still apply. The armed state is tracked the same way so modem emulators
   behave identically on top of it.
+- An optional hard range (`max_range_m`, an experiment's disc model, as Pereira et al.'s
+  simulator cut links at 5 m): a receiver farther than that from the sender when the frame
+  starts does not get it (fate out_of_range), on any profile, the ideal one included. On a
+  LoRa profile it comes on top of the path loss: a frame needs both, and a frame from beyond
+  the range does not collide with another at that receiver either.
 
 Time is whatever `now_us` the caller passes, non-decreasing across all calls. Every call that
 takes a time first resolves the frames that ended at or before it, so the receiver state a
@@ -88,6 +93,7 @@ class _Frame:
     interference_key: tuple
     sensitivity_dbm: float
     preamble_grace_us: Fraction
+    beyond_range: frozenset[int] = frozenset()   # receivers farther than max_range_m at the start
 
 
 @dataclass(eq=False)
@@ -112,11 +118,16 @@ class Channel:
         propagation: PropagationParams = PropagationParams(),
         faults: FaultParams = FaultParams(),
         loss_rule: Callable[[int, int, bytes], bool] | None = None,
+        max_range_m: float | None = None,
     ) -> None:
         """loss_rule(sender id, receiver id, payload): True loses that reception as an
-        injected loss (an experiment's or a test's targeted fault; drawn faults come on top)."""
+        injected loss (an experiment's or a test's targeted fault; drawn faults come on top).
+        max_range_m: the hard range (None: none)."""
+        if max_range_m is not None and not (math.isfinite(max_range_m) and max_range_m > 0):
+            raise ValueError(f"max_range_m must be a positive number of metres or None, got {max_range_m!r}")
         self.profile = profile
         self.loss_rule = loss_rule
+        self.max_range_m = None if max_range_m is None else float(max_range_m)
         self.seed = int(seed)
         self.occupancy = occupancy
         self.propagation = propagation
@@ -180,7 +191,7 @@ class Channel:
         power_dbm = self.profile.tx_power_dbm if tx_power_dbm is None else float(tx_power_dbm)
         frame = _Frame(self._seq, node.node_id, now_us, end_us, payload,
                        self._links_from(node, power_dbm, noise_dbm), armed,
-                       air, rx_key, if_key, sens_dbm, grace_us)
+                       air, rx_key, if_key, sens_dbm, grace_us, self._beyond_range(node))
         self._seq += 1
         self._airtime_us[node.node_id] += end_us - now_us
         node.tx_frame = frame
@@ -307,13 +318,27 @@ class Channel:
             links[rid] = (rssi_dbm, snr_db)
         return links
 
+    def _beyond_range(self, sender: _Node) -> frozenset[int]:
+        """The nodes farther than max_range_m from the sender now (positions at the frame's
+        start, as for the path loss)."""
+        if self.max_range_m is None:
+            return frozenset()
+        sx, sy = sender.position_fn()
+        out = set()
+        for rid, node in self._nodes.items():
+            if rid != sender.node_id:
+                rx, ry = node.position_fn()
+                if math.hypot(rx - sx, ry - sy) > self.max_range_m:
+                    out.add(rid)
+        return frozenset(out)
+
     def _physical_fate(self, frame: _Frame, rid: int, rssi_dbm: float) -> str:
         if self.profile.ideal:
-            return RECEIVED
+            return OUT_OF_RANGE if rid in frame.beyond_range else RECEIVED
         for other in self._window:
             if other.sender_id == rid and other.start_us < frame.end_us and frame.start_us < other.end_us:
                 return HALF_DUPLEX
-        if rssi_dbm < frame.sensitivity_dbm:
+        if rssi_dbm < frame.sensitivity_dbm or rid in frame.beyond_range:
             return OUT_OF_RANGE
         if rid not in frame.armed_at_start:
             return NOT_LISTENING
@@ -325,8 +350,8 @@ class Channel:
             if not (other.start_us < frame.end_us and frame.start_us < other.end_us):
                 continue
             other_link = other.link.get(rid)
-            if other_link is None or other_link[0] < frame.sensitivity_dbm:
-                continue
+            if other_link is None or other_link[0] < frame.sensitivity_dbm or rid in other.beyond_range:
+                continue    # too weak, or beyond the hard range, to harm this frame here
             early, late = (frame, other) if frame.start_us <= other.start_us else (other, frame)
             if early.end_us - late.start_us <= late.preamble_grace_us:
                 continue  # the overlap only ate the late frame's first preamble symbols

@@ -10,7 +10,7 @@ from hypothesis import given, settings, strategies as st
 from firmware import kernels
 from firmware.schemes.pereira.gates import GateTracker, detect_gates, place_clear_dm
 from firmware.schemes.pereira.records import Claim, Gate, Place, dm
-from firmware.schemes.pereira.regions import REAL, VIRTUAL, crosses, fold, signature_of
+from firmware.schemes.pereira.regions import REAL, VIRTUAL, crosses, fold, region_signature, signature_of
 from firmware.schemes.pereira.status import status_view
 from firmware.schemes.pereira.store import Store
 
@@ -252,7 +252,9 @@ def test_room_off_a_corridor_gives_two_regions_and_one_gate_between():
     assert len(set(corridor_region.tolist())) == 1 and len(set(room_region.tolist())) == 1
     assert set(corridor_region.tolist()) != set(room_region.tolist())
     key = graph.gate_key(0)
-    assert all(r.signature == signature_of([key]) for r in real)
+    assert all(r.gate_signature == signature_of([key]) for r in real)
+    assert all(r.signature == region_signature([key], [tuple(int(v) for v in graph.places[i, :4]) for i in r.places])
+               for r in real)
 
 
 def test_a_plain_corridor_gives_one_region():
@@ -260,7 +262,7 @@ def test_a_plain_corridor_gives_one_region():
     places = drive(g, [(1.5, CORRIDOR_Y), (14.5, CORRIDOR_Y), (3.0, 1.3)])
     graph = fold(places, gate_records(g))
     assert len(graph.gates) == 0 and len(graph.regions) == 1 and graph.adjacency == ()
-    assert graph.regions[0].signature == signature_of([])
+    assert graph.regions[0].gate_signature == signature_of([])
 
 
 def test_a_door_seen_from_the_corridor_makes_a_virtual_region_behind_it():
@@ -273,7 +275,7 @@ def test_a_door_seen_from_the_corridor_makes_a_virtual_region_behind_it():
     assert v.id[0] == VIRTUAL and not v.visited and v.anchor_y_dm > 26     # the room's side
     assert graph.adjacency == ((0, 1, 0),)
     # a robot that saw the whole room from the door claims it; a teammate that entered it
-    # resolves the claim to the real room, with the same signature (the room has one door)
+    # resolves the claim (virtual bit set) to the real room, with the same gate signature (one door)
     claim = Claim(2, 5, v.anchor_x_dm, v.anchor_y_dm, v.signature, 1, 1)
     assert graph.resolve(v.anchor_x_dm, v.anchor_y_dm) == 1
     inside = drive(g, [(7.05, CORRIDOR_Y), (7.05, 6.5)], oseq0=100)

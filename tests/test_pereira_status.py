@@ -20,21 +20,22 @@ GRAPH = fold(PLACES, GATES)
 G1, G2 = (0, 0, 128), (40, 0, 128)
 L, R, V = range(3)
 assert [r.virtual for r in GRAPH.regions] == [False, False, True]
-assert GRAPH.regions[L].signature == GRAPH.regions[R].signature == signature_of([G1])
-assert GRAPH.regions[V].signature == signature_of([G2])
+assert GRAPH.regions[L].gate_signature == GRAPH.regions[R].gate_signature == signature_of([G1])
+assert GRAPH.regions[L].signature != GRAPH.regions[R].signature      # their places differ
+assert GRAPH.regions[V].signature == GRAPH.regions[V].gate_signature == signature_of([G2])
 ANCHORS = [(r.anchor_x_dm, r.anchor_y_dm) for r in GRAPH.regions]
 # Points that resolve to a region by the nearest place, and one that resolves to none.
 PROBES = ANCHORS + [(-25, 3), (22, -4), (47, 2), (200, 200)]
 
 
-def sig_at(x, y):
+def sig_at(x, y, virtual=0):
     r = GRAPH.resolve(x, y)
-    return GRAPH.regions[r].signature if r is not None else 0
+    return (GRAPH.regions[r].gate_signature if virtual else GRAPH.regions[r].signature) if r is not None else 0
 
 
 claim_st = st.builds(
     lambda origin, oseq, at, right_sig, sig, explored, virtual: Claim(
-        origin, oseq, at[0], at[1], sig_at(*at) if right_sig else sig, explored, virtual),
+        origin, oseq, at[0], at[1], sig_at(*at, virtual) if right_sig else sig, explored, virtual),
     st.integers(0, 4), st.integers(0, 40), st.sampled_from(PROBES), st.booleans(), st.integers(0, 65535),
     st.integers(0, 1), st.integers(0, 1))
 claim_sets = st.lists(claim_st, max_size=25)
@@ -81,7 +82,7 @@ def reference(claims, observer):
     o != observer speaks through its newest claim among those naming the region (here every
     counter lies in 0..40, so newest is the largest; a tie goes to the retraction); the
     region is explored by others if any such claim is explored and carries the region's
-    signature."""
+    signature (a claim with the virtual bit: its gate signature)."""
     out = []
     for r, reg in enumerate(GRAPH.regions):
         by = set()
@@ -90,7 +91,7 @@ def reference(claims, observer):
             if mine:
                 top = max(c.oseq for c in mine)
                 latest = min((c for c in mine if c.oseq == top), key=lambda c: (c.explored, c))
-                if latest.explored and latest.sig == reg.signature:
+                if latest.explored and latest.sig == (reg.gate_signature if latest.virtual else reg.signature):
                     by.add(o)
         out.append((bool(by), min(by) if by else None))
     return out
@@ -206,14 +207,29 @@ def test_serial_latest_is_rfc_1982_newest_within_half_the_space(base, offsets):
 
 def test_a_claim_is_pending_or_ineffective_until_the_receiver_knows_the_claimants_gates():
     x, y = ANCHORS[R]
-    claim = Claim(2, 1, x, y, signature_of([G1]), 1, 0)
-    no_gates = fold(PLACES, [])            # the receiver lacks the door: one region, signature of nothing
+    claim = Claim(2, 1, x, y, fold(PLACES, GATES[:1]).regions[R].signature, 1, 0)
+    no_gates = fold(PLACES, [])            # the receiver lacks the door: one region, another signature
     s = status_view(no_gates, [claim], observer=1).regions
     assert len(s) == 1 and not s[0].explored_by_others and s[0].latest == ((claim, False),)
     s = status_view(fold(PLACES, GATES[:1]), [claim], observer=1).regions
     assert s[R].explored_by_others and not s[L].explored_by_others
     far = Claim(2, 2, 500, 500, 0, 1, 0)
     assert status_view(GRAPH, [far], observer=1).pending == (far,)
+
+
+def test_a_claim_does_not_cover_places_its_origin_did_not_know():
+    """A region that grew after the claim, with no new gate (every doorway known from the
+    start, as pereira:oracle's): the claim no longer applies, until its origin claims the
+    grown region."""
+    x, y = ANCHORS[R]
+    claim = Claim(2, 1, x, y, GRAPH.regions[R].signature, 1, 0)
+    assert status_view(GRAPH, [claim], observer=1).regions[R].explored_by_others
+    grown = fold(PLACES + [Place(3, 1, 35, 5, 6, 0)], GATES)
+    r = grown.resolve(x, y)
+    assert grown.regions[r].gate_signature == GRAPH.regions[R].gate_signature
+    assert not status_view(grown, [claim], observer=1).regions[r].explored_by_others
+    again = Claim(2, 2, x, y, grown.regions[r].signature, 1, 0)
+    assert status_view(grown, [claim, again], observer=1).regions[r].explored_by_others
 
 
 # ---- partitions ---------------------------------------------------------------------------------

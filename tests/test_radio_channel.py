@@ -327,6 +327,48 @@ def test_ideal_profile_delivers_everything():
         assert [e.payload[0] for e in events if isinstance(e, RadioRxFrame)] == [j for j in range(5) if j != i]
 
 
+def test_a_hard_range_cuts_the_ideal_link_at_that_distance():
+    """Pereira's disc model: nodes at 0, 8 and 16 m with a 10 m range; neighbours hear each
+    other, the ends do not, whatever the ideal link otherwise promises."""
+    ideal = profile("ideal-100Bps")
+    w = World({0: (0.0, 0.0), 1: (8.0, 0.0), 2: (16.0, 0.0)}, prof=ideal, max_range_m=10.0)
+    for i in range(3):
+        w.channel.transmit(i, bytes([i]) * 10, 0)
+    w.channel.advance_to(1_000_000)
+    assert (w.fate(0, 1), w.fate(1, 0), w.fate(1, 2), w.fate(2, 1)) == (RECEIVED,) * 4
+    assert w.fate(0, 2) == w.fate(2, 0) == OUT_OF_RANGE
+    assert [e.payload[0] for e in w.channel.take_events(0) if isinstance(e, RadioRxFrame)] == [1]
+    assert [e.payload[0] for e in w.channel.take_events(1) if isinstance(e, RadioRxFrame)] == [0, 2]
+    # Where the sender is when the frame starts counts: node 2 moves within range of node 0.
+    w.positions[2] = (9.5, 0.0)
+    w.channel.transmit(2, b"\x02", 1_000_000)
+    w.channel.advance_to(2_000_000)
+    assert w.fate(2, 0, nth=1) == RECEIVED
+    # Exactly at the range still hears (farther than, not as far as).
+    w2 = World({0: (0.0, 0.0), 1: (10.0, 0.0)}, prof=ideal, max_range_m=10.0)
+    w2.channel.transmit(0, b"x", 0)
+    w2.channel.advance_to(1_000_000)
+    assert w2.fate(0, 1) == RECEIVED
+
+
+def test_a_hard_range_on_a_lora_profile_also_silences_interference_from_beyond_it():
+    """On eu868-g1, node 1 at 4.9 m and node 2 at 5.1 m on the other side reach node 0 within
+    6 dB of each other, so their frames collide there; with a 5 m range node 2 is out of range
+    and its frame no longer harms node 1's."""
+    for rng, fate_far, fate_near in ((None, COLLIDED, COLLIDED), (5.0, OUT_OF_RANGE, RECEIVED)):
+        w = World({0: (0.0, 0.0), 1: (4.9, 0.0), 2: (-5.1, 0.0)}, prof=G1, max_range_m=rng)
+        w.channel.transmit(1, bytes(12), 0)
+        w.channel.transmit(2, bytes(12), 0)
+        w.channel.advance_to(AIRTIME_12B_US + 1)
+        assert (w.fate(1, 0), w.fate(2, 0)) == (fate_near, fate_far)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.inf, math.nan])
+def test_a_hard_range_must_be_a_positive_distance(bad):
+    with pytest.raises(ValueError, match="max_range_m"):
+        Channel(profile("ideal-100Bps"), 0, max_range_m=bad)
+
+
 def _fault_run(seed: int, n_frames: int, faults: FaultParams):
     w = World({0: (0.0, 0.0), 1: (10.0, 0.0)}, seed=seed, faults=faults)
     delivered = []

@@ -41,9 +41,12 @@ def test_every_scheme_declares_itself(spec):
 def _robot(spec: str) -> tuple[ScriptedHal, ExplorerAgent]:
     fake = ScriptedHal(np.full(360, 3.0))
     hal = fake.hal()
-    if "mesh" in build(spec).needs_of():
+    scheme = build(spec)
+    if "mesh" in scheme.needs_of():
         hal = dataclasses.replace(hal, mesh=SimMeshBus().endpoint(0))
-    agent = ExplorerAgent(hal, scheme=spec, radio_profile=profile("ideal-100Bps"))
+    if "region_map" in scheme.needs_of():
+        scheme.load_region_map(())          # a building with no doorways
+    agent = ExplorerAgent(hal, scheme=scheme, radio_profile=profile("ideal-100Bps"))
     agent.setup()
     return fake, agent
 

@@ -30,6 +30,7 @@ ALIASES: dict[str, str] = {
     "greedy-full": "dense:greedy",
     "minpos-full": "dense:minpos",
     "meier-full": "dense:meier",
+    "pereira-oracle": "pereira:oracle",
 }
 
 

@@ -47,6 +47,7 @@ NEEDS = {
     "aoa": "a WiFi angle-of-arrival sensor",
     "mesh": "a high-bandwidth mesh link (dense-map baselines)",
     "shared_frame": "odometry in one frame shared by the whole team",
+    "region_map": "the building's doorways, loaded into the scheme before it starts (the scheme checks)",
 }
 
 # Link-layer priorities for the records schemes send: higher goes first.

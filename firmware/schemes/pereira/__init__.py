@@ -3,12 +3,25 @@ merge without clocks (issue 23; `../shared/schemes/pereira.md`).
 
 A registered scheme (`--scheme pereira`, firmware.schemes.SCHEMES); its dialect (id 3) is in
 every node's dialect set, so `lorascout inspect`, the pcap export and the Wireshark
-dissector decode it.
+dissector decode it. Variants:
+
+    pereira          regions cut at the gates the robots find in their own maps
+    pereira:oracle   (alias pereira-oracle) regions cut at the doorways of a region map the
+                     host loads before the mission (Pereira.load_region_map; the need
+                     "region_map"): host_tools/region_oracle.py finds them with gates.py's
+                     detector on the whole ground-truth map, the paper's hand-made regions'
+                     stand-in. They are gate records of origin 254, held by every robot from
+                     the start, never sent; an oracle robot finds no gates of its own. So
+                     pereira / pereira:oracle measures what finding gates from partial,
+                     drifting views and sharing them costs, not the detector's rule itself.
 
     scheme.py    the Scheme: places every d_build_m, gates confirmed in the robot's own
                  map every pereira_gate_period_s, the explored judgement (A2) and claims,
                  waypoints in regions teammates claimed left to them (A5, A6), categories
                  and eq. (3) as ranks, intents, summaries and pushes; stats and drawables
+    labels.py    the private label grid (5.2 d): the window's FREE cells walked from the
+                 places with the gates drawn as walls, so a waypoint is placed in the
+                 region the robot could walk to it in, not through a wall no gate marks
     choice.py    the current and previous region with the margin (A7, A8), the four
                  frontier categories (1.5), Algorithm 1's conflict rule with eq. (3) (1.6)
     gossip.py    anti-entropy: who holds which records of which origin, what to push
@@ -26,12 +39,19 @@ dissector decode it.
     params.py    the detector's and the fold's geometry (the behaviour's parameters, with
                  units, are firmware/params.py's pereira_*, overridable with --set)
 
+Limited range: `--range-m M` on `lorascout run` and `sweep` (radio_sim.channel.Channel's
+max_range_m) cuts every link longer than M metres, the ideal link's included; records reach
+robots out of range through the others' summaries and pushes (tests/test_pereira_range.py).
+
 Not yet, or not as the spec says:
-- the private label grid (5.2 d): waypoints are labelled by the nearest place with no gate
-  between (RegionGraph.label), which can reach through a wall no gate marks;
 - within a category the shared choice takes the cheapest path, not the spec's
-  U = e_bit / (cost + 1) (the spec's `pereira_order=cost` ablation): path costs are
-  settled by the planner after the scheme's rank;
+  U = e_bit / (cost + 1) (the spec's `pereira_order=cost` ablation): the shared choice
+  orders by (rank, cost + penalty) with the cost settled by the planner after the scheme's
+  rank, and a quotient of that cost is no additive penalty, so U does not fit it without
+  changing the shared choice for every scheme;
+- the label grid covers the robot's window; points outside it (remembered waypoints,
+  teammates' far goals) are still labelled by the nearest place with no gate between
+  (RegionGraph.label), which can reach through a wall no gate marks;
 - goal persistence (A18) is the shared choice's (keep the target unless another of no worse
   rank costs under 0.8 of it), not 1.25 x U;
 - the end-game safety net takes back rich waypoints (pereira_revive_min_bit) in claimed
@@ -40,13 +60,14 @@ Not yet, or not as the spec says:
   a robot that has already stopped is woken only by a retraction, not by that net;
 - robots share no maps (as in the paper): a robot whose every frontier lies in regions
   teammates claimed stops, so one robot can end up exploring much longer than the rest
-  (maze_a: see the commit log for figures);
+  (maze_a: see the README's "Pereira et al." section for figures);
 - a done robot sends one done intent, not one every 30 s (the heartbeat says done);
 - pushes are cancelled when the record is overheard only while they wait in the scheme's
   outbox (at most PUSH_BACKLOG on the link), there is no LinkLayer.cancel;
+- the oracle's region map is not loaded on a real robot (host_tools/robot_config has no
+  file for it yet): only missions (`lorascout run`, `sweep`) hand it over;
 - routing over the region graph (it routes on its own places like the no-sharing
-  baseline), the limited-range radio option (`--range-m`), the pereira-oracle,
-  pereira-grid and pereira-nogossip variants, the mission's flush phase and per-robot
-  digests in the JSON, the region overlay as filled areas, tests/data/pereira8, and a
-  numba fold.
+  baseline), the pereira-grid and pereira-nogossip variants, the mission's flush phase and
+  per-robot digests in the JSON, the region overlay as filled areas, tests/data/pereira8,
+  a numba fold, and the acceptance grid (10 seeds, four maps, two links, ranges, loss).
 """

@@ -80,3 +80,10 @@ class PereiraParams:
 
 
 PARAMS = PereiraParams()
+
+
+def with_tuning(widening_kappa: float) -> PereiraParams:
+    """PARAMS with the one knob a robot's parameters set (ExplorationParams.pereira_widening_kappa):
+    the scheme and a host finding a map's doorways with the same detector use this."""
+    return PARAMS if widening_kappa == PARAMS.widening_kappa else \
+        PereiraParams(**{**PARAMS.__dict__, "widening_kappa": widening_kappa})

@@ -20,8 +20,10 @@ the same records hold the identical graph, bit for bit (`RegionGraph.digest`).
    in cm; a point on the gate's line counts on its "+" side, the left of a -> b).
 4. Regions are the connected pieces of the uncut graph. A region's id is its anchor, the
    smallest place key (x_dm, y_dm, sender, oseq) in it; its signature the CRC-16/MODBUS of
-   the sorted keys of the gates that cut an edge at one of its places. Adjacency: the two
-   regions at the ends of a cut edge, through that gate.
+   the sorted keys of the gates that cut an edge at one of its places, followed by the
+   sorted keys of its places (region_signature; the spec has the gates only: a claim then
+   outlived its region's growth where no new gate marks it); its gate signature the CRC of
+   the gates alone. Adjacency: the two regions at the ends of a cut edge, through that gate.
 5. Virtual regions V(g, s): the side s of gate g with no place within side_radius of the
    gate, when the other side has one: the room behind a door seen, never entered. It is
    adjacent, through g, to the region of the nearest place on the other side; its
@@ -30,8 +32,8 @@ the same records hold the identical graph, bit for bit (`RegionGraph.digest`).
    region stays visited.
 
 `RegionGraph.label` places a point in a region for private decisions (nearest place with
-no gate between, else the virtual region beyond the gate crossed): the spec's label grid
-(5.2 d) is not built. Not here yet: routing over the graph.
+no gate between, else the virtual region beyond the gate crossed) where the robot's label
+grid (labels.py, 5.2 d) does not reach. Not here yet: routing over the graph.
 """
 from __future__ import annotations
 
@@ -111,8 +113,19 @@ def gate_key_bytes(keys: Iterable[tuple[int, int, int]]) -> bytes:
 
 
 def signature_of(keys: Iterable[tuple[int, int, int]]) -> int:
-    """CRC-16/MODBUS over gate keys in sorted order: a region's signature."""
+    """CRC-16/MODBUS over gate keys in sorted order: a region's gate signature."""
     return crc16(gate_key_bytes(sorted(keys)))
+
+
+def region_signature(gate_keys: Iterable[tuple[int, int, int]], place_keys: Iterable[tuple[int, int, int, int]]) -> int:
+    """CRC-16/MODBUS over the sorted gate keys, then the sorted place keys (x_dm, y_dm,
+    sender, oseq) of a real region: what a claim of it names. With the places in it, a claim
+    covers the region as its claimant knew it: once anyone adds a place (the region grew
+    beyond what the claimant saw, with no new gate: the rule when every doorway is known from
+    the start, as pereira:oracle's are), the claim no longer applies until its claimant
+    judges the grown region again."""
+    return crc16(gate_key_bytes(sorted(gate_keys))
+                 + b"".join(struct.pack(">hhBH", x, y, o, q) for x, y, o, q in sorted(place_keys)))
 
 
 # ---- the graph --------------------------------------------------------------------------
@@ -122,9 +135,10 @@ class Region:
     id: tuple[int, ...]          # (REAL, x_dm, y_dm, sender, oseq) of its anchor, or (VIRTUAL, gx, gy, gdir, side)
     anchor_x_dm: int             # the anchor place, or the point 0.5 m beyond the gate
     anchor_y_dm: int
-    signature: int
+    signature: int               # real: region_signature (gates and places); virtual: signature_of({g})
     virtual: bool
     places: tuple[int, ...]      # indices into RegionGraph.places (empty for a virtual region)
+    gate_signature: int = 0      # signature_of(its gates): what a claim of the virtual region it was names
 
     @property
     def visited(self) -> bool:
@@ -284,6 +298,10 @@ class RegionGraph:
             cached = cKDTree(self.places[:, :2].astype(np.float64))
             object.__setattr__(self, "_tree", cached)
         return cached
+
+    def virtual_gate(self, k: int) -> tuple[int, int]:
+        """(gate index, side) of virtual region k."""
+        return self._virtual_gate[k]
 
     @property
     def _virtual_gate(self) -> dict[int, tuple[int, int]]:
@@ -477,9 +495,11 @@ def fold(places: Iterable[Place | tuple[int, ...]], gates: Iterable[Gate | tuple
     regions = []
     for r in range(n_real):
         a = members[r][0]
+        gk = [keys[g] for g in sig_gates[r]]
+        pk = [tuple(int(v) for v in pl[i, :4]) for i in members[r]]
         regions.append(Region((REAL, int(pl[a, 0]), int(pl[a, 1]), int(pl[a, 2]), int(pl[a, 3])),
-                              int(pl[a, 0]), int(pl[a, 1]), signature_of(keys[g] for g in sig_gates[r]), False,
-                              tuple(members[r])))
+                              int(pl[a, 0]), int(pl[a, 1]), region_signature(gk, pk), False,
+                              tuple(members[r]), signature_of(gk)))
 
     # Virtual regions behind gates with places on one side only.
     virtual: list[tuple[tuple[int, ...], int, int, int]] = []   # (id, anchor x, anchor y, adjacent real region)
@@ -517,7 +537,8 @@ def fold(places: Iterable[Place | tuple[int, ...]], gates: Iterable[Gate | tuple
     for vid, x, y, real in virtual:
         g = gate_index[vid[1:4]]
         k = len(regions)
-        regions.append(Region(vid, x, y, signature_of([keys[g]]), True, ()))
+        sig = signature_of([keys[g]])
+        regions.append(Region(vid, x, y, sig, True, (), sig))
         adjacency.add((real, k, g))
     return RegionGraph(places=pl, gate_records=gr, gate_of_record=gate_of_record, gates=acc, segments_cm=seg,
                        edges=edges, edge_kind=kind, cuts=cuts, region_of_place=region_of_place,

@@ -10,7 +10,11 @@ region known in its window, none of its waypoints there, two cycles in a row) an
 or takes it back, in a `claim`; the claims it hears give each region's e^o (status.py: eq.
 1 and 2, the same-robot override, the loop rule, no clock).
 
-Its planning stage: waypoints in regions a teammate's claim calls explored are left to the
+The oracle variant (`pereira:oracle`) holds the doorways of a region map the host loads
+as gate records of origin 254 from the start and finds no gates of its own.
+
+Its planning stage places waypoints in regions by its label grid (labels.py), then:
+waypoints in regions a teammate's claim calls explored are left to the
 team (A5, A6; with no teammate exploring, the rich ones are taken back); the others are
 ranked by category (f^fu, f^c, f^fs, f^o) and by Algorithm 1's conflict rule with eq. (3)
 against the `intent`s teammates broadcast (choice.py); the shared choice takes the
@@ -20,9 +24,8 @@ Beyond the local window it routes along a graph of its own places.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -33,9 +36,11 @@ from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, PRIORITY_STAT
 from firmware.schemes.pereira.choice import CONFLICT_RANK, OTHER, Whereabouts, categorise, conflicts
 from firmware.schemes.pereira.gates import GateTracker, detect_gates, place_clear_dm
 from firmware.schemes.pereira.gossip import Holdings
-from firmware.schemes.pereira.params import PARAMS
-from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_MAX_DM, OSEQ_BITS, Claim, Gate, Intent, Place,
-                                              Summary, dm, serial_newer, typed, values_of)
+from firmware.schemes.pereira.labels import NONE as NO_LABEL
+from firmware.schemes.pereira.labels import label_grid
+from firmware.schemes.pereira.params import with_tuning
+from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_MAX_DM, ORACLE_ORIGIN, OSEQ_BITS, Claim,
+                                              Gate, Intent, Place, Summary, dm, encode, serial_newer, typed, values_of)
 from firmware.schemes.pereira.regions import RegionGraph
 from firmware.schemes.pereira.store import Store
 from firmware.services.pose import TravelMilestones
@@ -52,15 +57,47 @@ _OWN_TYPES = ("place", "gate", "claim")
 class Pereira(Scheme):
     name = "pereira"
     doc = "Pereira et al.'s region statuses merged without clocks, frontier categories and eq. (3), over LoRa"
-    variants = {"": "regions from gates and places, statuses as claims, categories and eq. (3), gossip for multi-hop"}
+    variants = {"": "regions from gates and places, statuses as claims, categories and eq. (3), gossip for multi-hop",
+                "oracle": "the same, with regions cut at the doorways of a region map the host loads (the ground "
+                          "truth's: the paper's oracle condition) instead of gates the robots find"}
     dialect = DIALECT
     needs = frozenset({"radio", "shared_frame"})
+
+    def __init__(self, variant: str = "") -> None:
+        super().__init__(variant)
+        self._doorways: tuple[Gate, ...] | None = None
+
+    def needs_of(self) -> frozenset[str]:
+        return self.needs | {"region_map"} if self.variant == "oracle" else self.needs
+
+    def load_region_map(self, doorways: Sequence[tuple[int, int, int, int]]) -> None:
+        """The team's region map (the oracle variant): doorways in the shared frame as a gate
+        record carries them, (x_dm, y_dm, dir_code, half_2cm), e.g. host_tools.region_oracle's
+        doorways of the ground truth. They become gate records of origin ORACLE_ORIGIN, held
+        by every robot from the start and never sent; the robot then finds no gates of its
+        own. Given before the agent starts; ValueError for a value a gate record cannot carry."""
+        if self.variant != "oracle":
+            raise ValueError(f"scheme {self.spec} finds its own gates; only {self.name}:oracle loads a region map")
+        gates = []
+        for k, d in enumerate(doorways):
+            g = Gate(ORACLE_ORIGIN, k + 1, *(int(v) for v in d))
+            try:
+                encode(g)
+            except ValueError as exc:
+                raise ValueError(f"region map: doorway {k + 1} {tuple(d)}: {exc}") from None
+            gates.append(g)
+        if len(gates) >= 1 << OSEQ_BITS:
+            raise ValueError(f"region map: {len(gates)} doorways, at most {(1 << OSEQ_BITS) - 1}")
+        self._doorways = tuple(gates)
 
     def attach(self, services: Services) -> None:
         super().attach(services)
         p = services.params
-        self.pp = dataclasses.replace(PARAMS, widening_kappa=p.pereira_widening_kappa)
-        self.store = Store(params=self.pp)
+        if self.variant == "oracle" and self._doorways is None:
+            raise ValueError(f"scheme {self.spec} needs the team's region map: give it with load_region_map "
+                             "before the robot starts")
+        self.pp = with_tuning(p.pereira_widening_kappa)
+        self.store = Store(self._doorways or (), params=self.pp)
         self.holdings = Holdings()
         self.tracker = GateTracker(self.pp)
         self.where = Whereabouts(p.pereira_margin_m)
@@ -76,6 +113,7 @@ class Pereira(Scheme):
         self._clean: dict[tuple[int, ...], int] = {}         # region id -> cycles in a row it looked explored
         self._category: dict[tuple[float, float], int] = {}  # this cycle's candidates' categories
         self._sight: np.ndarray | None = None
+        self._grid: tuple | None = None                      # graph, cycle time, row0, col0, label grid
         self._xy = (0.0, 0.0)                                # the robot's position at the last plan
         self._view_key: tuple | None = None
         self._explored_others: set[int] = set()
@@ -134,8 +172,8 @@ class Pereira(Scheme):
     def _task_gates(self, now_us: int) -> None:
         """Gates in the robot's own window; one record for each newly confirmed gate the
         region graph does not hold yet."""
-        if self._finished or not self.s.has_planned():
-            return
+        if self._finished or not self.s.has_planned() or self._doorways is not None:
+            return      # (the oracle variant's regions are the region map's)
         lm, p = self.s.local_map, self.s.params
         # Only around the robot, where its map changes (the sensor's reach, d_cam_m, and a
         # gate's widening radius beyond): gates farther off were looked at when the robot
@@ -161,8 +199,8 @@ class Pereira(Scheme):
         me = self.s.robot_id
         if values["sender_id"] == me:
             return      # own records relayed back: this robot's view of them is its own (loop rule)
-        if values["sender_id"] == EMPTY_ORIGIN:
-            return      # no robot: the id marks an empty summary slot, so it could never be summarised
+        if values["sender_id"] in (EMPTY_ORIGIN, ORACLE_ORIGIN):
+            return      # no robot: an empty summary slot's id, or the region map's (loaded, never heard)
         if rtype == "intent":
             it = typed(rtype, values)
             held = self._intents.get(it.sender_id)
@@ -240,9 +278,30 @@ class Pereira(Scheme):
             self._view_key = key
         return self._explored_others
 
+    def _label_grid(self, graph: RegionGraph, sight: np.ndarray, now_us: int) -> None:
+        """This cycle's label grid (labels.py), built once per planning cycle and graph."""
+        g = self._grid
+        if g is not None and g[0] is graph and g[1] == now_us:
+            return
+        lm = self.s.local_map
+        self._grid = (graph, now_us, lm.row0, lm.col0,
+                      label_grid(sight, lm.row0, lm.col0, self.s.params.resolution_m, graph))
+
     def _labels(self, graph: RegionGraph, xy: list[tuple[float, float]]) -> list[int | None]:
+        """Each point's region: the label grid's where it has one for this graph, else the
+        nearest place with no gate between (RegionGraph.label)."""
         reach = int(round(self.s.params.pereira_label_reach_m * 10))
-        return [graph.label(dm(x), dm(y), reach) for x, y in xy]
+        g = self._grid
+        if g is None or g[0] is not graph or not xy:
+            return [graph.label(dm(x), dm(y), reach) for x, y in xy]
+        _graph, _t, row0, col0, grid = g
+        res = self.s.params.resolution_m
+        out = []
+        for x, y in xy:
+            i, j = int(math.floor(y / res)) - row0, int(math.floor(x / res)) - col0
+            k = int(grid[i, j]) if 0 <= i < grid.shape[0] and 0 <= j < grid.shape[1] else NO_LABEL
+            out.append(k if k != NO_LABEL else graph.label(dm(x), dm(y), reach))
+        return out
 
     def _position(self) -> tuple[float, float]:
         return self._xy
@@ -259,6 +318,7 @@ class Pereira(Scheme):
         if not others:
             return
         graph = self.store.graph()
+        self._label_grid(graph, view.sight, view.now_us)
         alone = not self.s.roster.any_active(view.now_us)
         keep = []
         for w, r in zip(items, self._labels(graph, [(w.x_m, w.y_m) for w in items])):
@@ -285,7 +345,8 @@ class Pereira(Scheme):
         self._xy = (view.x_m, view.y_m)
         self._sight = view.sight
         graph = self.store.graph()
-        here = graph.label(dm(view.x_m), dm(view.y_m), int(round(p.pereira_label_reach_m * 10)))
+        self._label_grid(graph, view.sight, view.now_us)
+        (here,) = self._labels(graph, [(view.x_m, view.y_m)])
         self.where.update(graph, here, view.x_m, view.y_m)
         current, previous = self.where.indices(graph)
         labels = self._labels(graph, [(c.x_m, c.y_m) for c in own])
@@ -309,12 +370,11 @@ class Pereira(Scheme):
         this robot's graph, A12); stale intents and finished robots left out (A10)."""
         p = self.s.params
         done = {rid for rid, m in self.s.roster.members().items() if m.done}
-        reach = int(round(p.pereira_label_reach_m * 10))
         out: dict[int, list[tuple[float, int]]] = {}
         for rid, (it, heard_us) in sorted(self._intents.items()):
             if it.state != EXPLORING or rid in done or now_us - heard_us > p.pereira_intent_expiry_s * 1e6:
                 continue
-            h = graph.label(it.goal_x_dm, it.goal_y_dm, reach)
+            (h,) = self._labels(graph, [(it.goal_x_dm / 10.0, it.goal_y_dm / 10.0)])
             if h is not None:
                 out.setdefault(h, []).append((it.goal_dist_dm / 10.0, rid))
         return out
@@ -401,7 +461,8 @@ class Pereira(Scheme):
     # --- for the host -----------------------------------------------------------------
     def stats(self) -> dict[str, int]:
         graph = self.store.graph()
-        return {**self.counts, "records_held": len(self.store), "regions": sum(not r.virtual for r in graph.regions),
+        return {**self.counts, "records_held": len(self.store), "map_doorways": len(self._doorways or ()),
+                "regions": sum(not r.virtual for r in graph.regions),
                 "virtual_regions": sum(r.virtual for r in graph.regions), "gates_held": len(graph.gates),
                 "regions_explored_by_others": len(self._explored_by_others())}
 

@@ -10,9 +10,10 @@ hears B: 1, then C retracts, and A drops to 0 although B explored the region), s
   a grow-only set: the merge is set union, commutative, associative and idempotent, and a
   relay forwards the origin's record unchanged, with the origin's counter (A4).
 - A receiver resolves a claim's anchor to a region of its own region graph
-  (RegionGraph.resolve); the claim is effective only if its signature equals that region's,
-  so a claim never reaches beyond the boundary its origin knew, and one whose gates the
-  receiver lacks waits (pending).
+  (RegionGraph.resolve); the claim is effective only if its signature equals that region's
+  (its gates and places; a claim with the virtual bit, of a room seen through a door, its
+  gates alone), so a claim never reaches beyond the region its origin knew, and one whose
+  gates or places the receiver lacks waits (pending).
 - e^o_A(R) = OR over origins o != A of [o's latest claim among those resolving to R is
   effective and explored] (eq. 1 as an OR over per-origin registers). "Latest" is the
   origin's own counter in RFC 1982 order, the only order compared (no clock); so a newer
@@ -135,7 +136,8 @@ def status_view(graph: RegionGraph, claims: Iterable[Claim] | ClaimSet, observer
     latest: dict[int, list[tuple[Claim, bool]]] = {}
     for (r, _origin), cs in sorted(groups.items()):
         c = _latest(cs)
-        latest.setdefault(r, []).append((c, c.sig == graph.regions[r].signature))
+        reg = graph.regions[r]
+        latest.setdefault(r, []).append((c, c.sig == (reg.gate_signature if c.virtual else reg.signature)))
     out = []
     for k, reg in enumerate(graph.regions):
         mine = tuple(latest.get(k, ()))
