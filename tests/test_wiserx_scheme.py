@@ -375,3 +375,72 @@ def test_three_robots_stop_by_themselves_without_a_lora_byte():
     es = js["explorer_stats"]
     assert all(n > 0 for n in es["hgrid_points_teammates"]), "every robot recorded its teammates"
     assert all(n > 0 for n in es["uwb_aoa_tracks_started"])
+
+
+# --- the planning stage: soft and hard termination, on a hand-built map ------------------------
+
+def _rig(spec: str):
+    """A robot at (10, 20) in a seen-free room x in [5, 35], y in [15, 25], unknown all round;
+    its hgrid over a 40 m square, every cell filled by its own positions (fill 1.0)."""
+    from firmware.params import ExplorationParams
+    from firmware.services.local_map import LocalMap
+    from tests.doubles import PlannerRig, paint_box
+    P = ExplorationParams()
+    lm = LocalMap(P, 20.0, 20.0)
+    lm.logodds[:] = 0.0
+    paint_box(lm, 5.0, 35.0, 15.0, 25.0, P.logodds_min)
+    rig = PlannerRig(lm, spec, robot_id=0)
+    sch = rig.scheme
+    sch.hgrid = HGrid(0, (0.0, 0.0, 40.0, 40.0), params=sch.params)
+    for x in range(5, 40, 10):
+        for y in range(5, 40, 10):
+            sch.hgrid.insert(0, x, y, 1.0, 0)
+            sch.hgrid.insert(0, x + 0.5, y, 1.0, 0)
+    return rig
+
+
+def _plan_until_done(rig, cycles=12):
+    for k in range(cycles):
+        plan = rig.plan(10.0, 20.0, (k + 1) * 3_000_000)
+        if plan.done:
+            return True
+    return False
+
+
+def _teammate_all_round(rig, robot=1, alive=True):
+    """A teammate that stood every 2 m along the room's edge and beyond it."""
+    for x in range(0, 41, 2):
+        for y in (9, 13, 17, 23, 27, 31):
+            rig.scheme.hgrid.insert(robot, x, y, 1.0, 0)
+    for y in range(9, 32, 2):
+        for x in (1, 3, 37, 39):
+            rig.scheme.hgrid.insert(robot, x, y, 1.0, 0)
+    rig.scheme.hgrid.set_alive(robot, alive)
+
+
+def test_after_soft_a_robot_stops_where_teammates_have_been_all_round():
+    rig = _rig("wiserx")
+    _teammate_all_round(rig)
+    assert _plan_until_done(rig)
+    assert rig.stat("waypoints_invalid") > 0 and rig.scheme.soft
+
+
+def test_without_teammates_positions_or_with_the_teammate_failed_it_goes_on():
+    assert not _plan_until_done(_rig("wiserx"))
+    rig = _rig("wiserx")
+    _teammate_all_round(rig, alive=False)       # eq. (7): a failed robot's area is open again
+    assert not _plan_until_done(rig)
+    assert rig.stat("waypoints_invalid") == 0
+
+
+def test_the_blind_variant_never_counts_a_loss():
+    rig = _rig("wiserx-blind")
+    _teammate_all_round(rig)
+    assert not _plan_until_done(rig)
+
+
+def test_hard_stops_at_once_in_paper_mode_and_never_in_complete_mode():
+    rig = _rig("wiserx:paper")                     # fill 1.0 >= hard 0.95
+    assert rig.plan(10.0, 20.0).done and rig.scheme.hard
+    assert rig.stat("waypoints_dropped_hard") > 0
+    assert not _rig("wiserx").scheme.params.hard_enabled

@@ -18,8 +18,8 @@ Per robot, in its own odometry frame:
   left to it is commit_share of its first (commitment).
 
 Variants: `complete` (default; the spec's fix of section 5.8: disc fill, 25 m^2 footprint,
-soft 0.85, hard off), `paper` (the authors' >= 2 points per cell, 5 m^2 footprint, soft 0.85,
-hard 0.95), `blind` (the same code without relative sensing: beta = 1, no loss, fill from
+soft 0.85, hard off; kappa1 = 0.8 r), `paper` (the authors' >= 2 points per cell, 5 m^2
+footprint, soft 0.85, hard 0.95, kappa1 = r / 2), `blind` (the same code without relative sensing: beta = 1, no loss, fill from
 own positions only; needs neither UWB nor AoA).
 
 Deviations from the paper, on purpose: viewpoints are the shared planner's waypoints
