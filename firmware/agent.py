@@ -24,6 +24,7 @@ from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task, TaskProfiler
 from firmware.schemes import all_dialects, build
 from firmware.schemes.base import NEEDS, PRIORITY_STATUS, Scheme, Services
+from firmware.services.deployment import Deployment
 from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.services.motion import PathFollower, StallDetector
 from firmware.services.planner import FrontiersLeft, Planner
@@ -49,14 +50,17 @@ class ExplorerAgent:
 
     def __init__(self, hal: Hal, params: ExplorationParams = ExplorationParams(),
                  rates: TaskRates = TaskRates(), scheme: Scheme | str = "bayer-faigl:greedy",
-                 radio_profile: RadioProfile | None = None, team_size: int = 1) -> None:
+                 radio_profile: RadioProfile | None = None, team_size: int = 1,
+                 deployment: Deployment | None = None) -> None:
         """scheme: a Scheme, or its registry spec (firmware.schemes). team_size: robots
         sharing the channel, with ids 0..team_size-1; it sizes the link layer's TDMA frame
-        (one slot per robot) on profiles with a shared channel."""
+        (one slot per robot) on profiles with a shared channel. deployment: what the team
+        knew of the area before it started (services.deployment), for schemes that use it."""
         self.hal = hal
         self.p = params
         self.rates = rates
         self.scheme = build(scheme) if isinstance(scheme, str) else scheme
+        self.deployment = deployment
         needs = self.scheme.needs_of()
         missing = [n for n in sorted(needs) if not self._has(n, radio_profile)]
         if missing:
@@ -119,7 +123,9 @@ class ExplorerAgent:
             last_scan_binned=self._binned_last_scan, has_planned=lambda: self._last_plan_us >= 0,
             queued=self.link.queued if self.link is not None else (lambda rtype: 0),
             on_air_until_us=self.link.on_air_until_us if self.link is not None else (lambda: 0),
-            current_target=lambda: self.targets.target))
+            current_target=lambda: self.targets.target, pose_at=self.pose.pose_at,
+            uwb=self.hal.uwb if self.hal.has("uwb") else None, aoa=self.hal.aoa if self.hal.has("aoa") else None,
+            deployment=self.deployment))
         own_tasks = self.scheme.tasks()
         if self.link is not None:
             own_tasks.insert(0, Task("heartbeat", self.rates.heartbeat_hz, self._task_heartbeat))

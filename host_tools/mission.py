@@ -19,6 +19,7 @@ import numpy as np
 from firmware.agent import ExplorerAgent
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import TaskProfiler
+from firmware.services.deployment import Deployment
 from firmware.services.planner import FrontiersLeft
 from firmware.schemes import build as build_scheme
 from hal.lora import profile as radio_profile
@@ -274,7 +275,8 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 hal = dataclasses.replace(hal, uwb=rangers[i])
             if "mesh" in scheme.needs_of():
                 hal = dataclasses.replace(hal, mesh=mesh.endpoint(i))
-            agent = ExplorerAgent(hal, params, rates, scheme, profile, team_size=cfg.robots)
+            agent = ExplorerAgent(hal, params, rates, scheme, profile, team_size=cfg.robots,
+                                  deployment=deployment(occ, reachable, poses[i], cfg.frames, cfg.robots))
             agent.setup()
             agents.append(agent)
         sampler = polygon_metrics.ErrorSampler() if polygon_metrics.has_polygons(agents) else None
@@ -305,6 +307,27 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 capture.close()
             else:
                 capture.abort()
+
+
+# Deployment knowledge (services.deployment) comes as navigable area per square of this side.
+PLAN_CELL_M = 1.0
+
+
+def deployment(occ, reachable: np.ndarray, start: Pose, frames: str, robots: int) -> Deployment:
+    """What a robot is told before it starts (services.deployment): the map's bounding box,
+    the area its body can reach per PLAN_CELL_M square (a coarse floor plan), and where its
+    odometry frame lies in the map's: the identity with frames "shared", its start pose with
+    frames "own"."""
+    res = occ.resolution_m
+    n_r = math.ceil(occ.height_m / PLAN_CELL_M - 1e-9)
+    n_c = math.ceil(occ.width_m / PLAN_CELL_M - 1e-9)
+    rows, cols = np.nonzero(reachable)
+    area = np.zeros((n_r, n_c))
+    np.add.at(area, (np.minimum(((rows + 0.5) * res / PLAN_CELL_M).astype(np.int64), n_r - 1),
+                     np.minimum(((cols + 0.5) * res / PLAN_CELL_M).astype(np.int64), n_c - 1)), res * res)
+    x0, y0 = occ.origin_x_m, occ.origin_y_m
+    origin = (float(start[0]), float(start[1]), float(start[2])) if frames == "own" else (0.0, 0.0, 0.0)
+    return Deployment((x0, y0, x0 + occ.width_m, y0 + occ.height_m), origin, robots, area, PLAN_CELL_M)
 
 
 def _pose_errors(world: World, agents: list[ExplorerAgent], own_origins: list[Pose] | None) -> list[float]:

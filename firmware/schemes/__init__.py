@@ -22,6 +22,7 @@ SCHEMES: dict[str, tuple[str, str]] = {
     "independent": ("firmware.schemes.independent", "Independent"),
     "meier": ("firmware.schemes.meier.scheme", "Meier"),
     "pereira": ("firmware.schemes.pereira.scheme", "Pereira"),
+    "wiserx": ("firmware.schemes.wiserx.scheme", "Wiserx"),
 }
 
 ALIASES: dict[str, str] = {
@@ -31,6 +32,7 @@ ALIASES: dict[str, str] = {
     "minpos-full": "dense:minpos",
     "meier-full": "dense:meier",
     "pereira-oracle": "pereira:oracle",
+    "wiserx-blind": "wiserx:blind",
 }
 
 

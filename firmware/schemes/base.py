@@ -31,12 +31,13 @@ from firmware.comms.schema import Dialect
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Task
 from firmware.services.local_map import BinnedScan, LocalMap
+from firmware.services.deployment import Deployment
 from firmware.services.pose import TravelMilestones
 from firmware.services.roster import Roster
 from firmware.services.targets import Candidate, Target
 from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
-from hal.interfaces import MeshLink
+from hal.interfaces import MeshLink, UwbRanger, WifiAoa
 from hal.samples import OdometrySample
 
 # What a scheme may need from the robot (Scheme.needs):
@@ -80,6 +81,11 @@ class Services:
     queued: Callable[[str], int] = lambda rtype: 0          # records of a type waiting on the link
     on_air_until_us: Callable[[], int] = lambda: 0           # when this robot's last frame ends on the air
     current_target: Callable[[], Target | None] = lambda: None   # where the robot is heading
+    # This robot's pose (x_m, y_m, yaw_rad) at a time, for samples taken then (services.pose).
+    pose_at: Callable[[int], tuple[float, float, float] | None] = lambda stamp_us: None
+    uwb: UwbRanger | None = None                 # with "uwb" in the scheme's needs
+    aoa: WifiAoa | None = None                   # with "aoa" in the scheme's needs
+    deployment: Deployment | None = None         # what the team knew before it started, if anything
 
 
 @dataclass

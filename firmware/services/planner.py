@@ -351,6 +351,13 @@ def settle_choice_costs(candidates: list[Candidate], paths: GridPaths, target: T
     r0 = min(c.rank for c in candidates)
     group = [c for c in candidates if c.rank == r0]
     _read_costs(group, paths, resolution_m)     # settled on the way to an earlier choice
+    if any(c.by_gain for c in group):
+        # A choice by gain per metre needs every cost of the group.
+        local = [c for c in group if c.local_cell is not None and not paths.settled(*c.local_cell)]
+        if local:
+            paths.settle([c.local_cell[0] for c in local], [c.local_cell[1] for c in local])
+            _read_costs(local, paths, resolution_m)
+        return
     waiting = [c for c in group if c.local_cell is not None and not paths.settled(*c.local_cell)]
     if waiting:
         paths.settle_first([c.local_cell[0] for c in waiting], [c.local_cell[1] for c in waiting])

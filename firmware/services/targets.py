@@ -42,6 +42,16 @@ class Candidate:
     rank: int = 0                   # lower is better; the scheme's ranking, before cost
     penalty_m: float = 0.0          # the scheme's utility discount, in metres of path added to the cost
     local_cell: tuple[int, int] | None = None   # its local map cell, if a grid path reaches it
+    # A scheme that chooses by utility per metre (WiSER-X's eq. 2, gain / cost) sets the gain;
+    # nan: the choice is by cost plus penalty.
+    gain: float = math.nan
+
+    @property
+    def by_gain(self) -> bool:
+        return not math.isnan(self.gain)
+
+    def gain_per_m(self, min_cost_m: float) -> float:
+        return self.gain / max(self.cost_m, min_cost_m)
 
 
 class TargetKeeper:
@@ -128,12 +138,27 @@ class TargetKeeper:
     def choose(self, candidates: list[Candidate]) -> Candidate:
         """Lowest rank, then the closest (cost plus the scheme's penalty). The current target
         is kept unless another is clearly better, so the robot does not dither."""
+        if any(c.by_gain for c in candidates):
+            return self._choose_by_gain(candidates)
         key = lambda c: (c.rank, c.cost_m + c.penalty_m, c.x_m, c.y_m)  # noqa: E731
         best = min(candidates, key=key)
         if self.target is not None:
             for c in candidates:
                 if (c.x_m, c.y_m) == (self.target.x_m, self.target.y_m) and c.rank <= best.rank \
                         and best.cost_m + best.penalty_m >= 0.8 * (c.cost_m + c.penalty_m):
+                    return c
+        return best
+
+    def _choose_by_gain(self, candidates: list[Candidate]) -> Candidate:
+        """Lowest rank, then the highest gain per metre of cost (a candidate without a gain
+        has none); the current target is kept unless another's is clearly higher."""
+        floor = self.p.resolution_m
+        value = lambda c: c.gain_per_m(floor) if c.by_gain else 0.0  # noqa: E731
+        best = min(candidates, key=lambda c: (c.rank, -value(c), c.x_m, c.y_m))
+        if self.target is not None:
+            for c in candidates:
+                if (c.x_m, c.y_m) == (self.target.x_m, self.target.y_m) and c.rank <= best.rank \
+                        and 0.8 * value(best) <= value(c):
                     return c
         return best
 

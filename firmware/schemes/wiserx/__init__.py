@@ -1,22 +1,21 @@
 """WiSER-X (Jadhav et al., arXiv 2412.19876; ../shared/schemes/wiserx.md; issue 24): exploration
-coordinated by UWB ranges and WiFi angle-of-arrival bearings alone.
+coordinated by UWB ranges and WiFi angle-of-arrival bearings alone; nothing on the LoRa air.
 
-Not a scheme yet: nothing here is registered in firmware.schemes.SCHEMES, and no robot runs it.
+    ekf.py      the relative-position EKF per teammate (sections 1.2, 1.3, A1-A5), tested by
+                tests/test_wiserx_ekf.py (unit tests of 6.1, NEES/NIS setups A1 and A2 of 6.2)
+    relpos.py   the track layer in front of it: samples paired with the own pose of their
+                time, the bearing-median and range-jump rules (A3, A4), paired samples as a
+                converted position measurement, silence-detected failure with revival (A18)
+    hgrid.py    the coverage record: own positions and teammate estimates, tau per robot,
+                disc / pts2 fill over the footprint (1.4, A6-A9, 5.8)
+    utility.py  eqs. (2)-(7): S, E, I, I_0, the loss ratio, beta, U
+    scheme.py   the Scheme: relsense task, soft and hard termination, commitment; variants
+                complete (default), paper, blind (alias wiserx-blind)
+    params.py   EkfParams and WiserxParams, with units and valid ranges
 
-What exists:
-- ekf.py: the relative-position EKF of issue 24 item 1 (spec sections 1.2, 1.3, 2, A1-A5):
-  per teammate, position and velocity in this robot's own odometry frame; white-noise
-  acceleration motion; UWB range and AoA bearing updates, sequential (each sample at its own
-  time) or in windows (AverageDist and StableBearingAngle); chi-square gating, wrapped
-  bearing residuals, Joseph-form covariance, polar start. Tested by tests/test_wiserx_ekf.py
-  (unit tests of section 6.1, NEES/NIS setups A1 and A2 of section 6.2).
-- params.py: its constants (EkfParams), with units and valid ranges.
-
-What does not exist yet: the per-peer track layer `relpos` (sample pairing with own poses
-from services.pose, the K = 5 circular-median bearing check and the 3 m range-jump rule of
-A3/A4, boundary rejection, silence-detected failure tau), the PDAF over top-N AoA peaks,
-NLOS inflation of R (A30), the hgrid coverage record, frontiers and the utility of eqs. 2-7,
-commitment, soft and hard termination, the relsense task, the scheme class and its variants
-(wiserx, wiserx-lora, wiserx-blind, divide), and the optional LoRa digest record.
-The simulated sensing profiles it is meant to run on are in world_sim/sensing.py.
+Not built: the PDAF over top-N AoA peaks, NLOS inflation of R (A30), window-mode updates in
+the scheme (ekf.py has them), frontier clusters with PCA split as viewpoints (the shared
+planner's waypoints are the viewpoints), the `divide` and `wiserx-lora` variants, failure
+injection and slow robots in the simulator (sections 5.5, 6.5, 6.6).
+The simulated sensing profiles it runs on are in world_sim/sensing.py.
 """

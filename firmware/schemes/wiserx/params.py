@@ -65,3 +65,98 @@ class EkfParams:
                 kind = "an integer" if isinstance(f.default, int) else "a number"
                 raise ValueError(f"EkfParams.{f.name} must be {kind} in [{lo:g}, {hi:g}] {f.metadata['unit']}".rstrip()
                                  + f", got {value!r}")
+
+
+FILL_RULES = ("disc", "pts2")
+
+
+def _choice(default: str, choices: tuple[str, ...], doc: str):
+    return field(default=default, metadata={"unit": "", "choices": choices, "doc": doc})
+
+
+@dataclass(frozen=True)
+class WiserxParams:
+    """The constants of the track layer (relpos), the coverage record (hgrid) and the utility
+    (../shared/schemes/wiserx.md sections 1.4-1.8, 2 and A3-A30); the default is the spec's
+    complete mode, `WiserxParams.paper()` its paper mode."""
+
+    # --- relpos: the per-teammate track layer (A3, A4, A18, A19, A26) ---
+    # A bearing counts only within bearing_median_tol of the circular median of the last
+    # bearing_median_k bearings to that teammate, each taken as its residual against the
+    # track's prediction at its time (so a teammate driving past does not look like
+    # multipath); with fewer than bearing_median_min of them, only the EKF's gate decides.
+    bearing_median_k: int = _p(5, 'samples', 1, 100, 'bearings whose circular median a new bearing must be near')
+    bearing_median_min: int = _p(3, 'samples', 1, 100, 'bearings needed before the median check applies')
+    bearing_median_tol_rad: float = _p(math.radians(10.0), 'rad', 0.0, math.pi,
+                                       "a bearing's largest distance from the recent median")
+    # A range jumping from the last accepted one by more than range_jump_m plus
+    # range_jump_speed_mps times the time between them is held back, unless range_jump_agree
+    # held-back ranges in a row agree with each other within range_jump_m (the code's 3 m rule).
+    range_jump_m: float = _p(3.0, 'm', 0.0, 1000.0, 'a range jumping this far from the last accepted one is held back')
+    range_jump_speed_mps: float = _p(2.0, 'm/s', 0.0, 100.0, 'the jump allowed grows at this rate with the gap in time')
+    range_jump_agree: int = _p(3, 'samples', 1, 100, 'held-back ranges that agree in a row are taken')
+    # Neither a range nor a bearing of a teammate for this long: it failed (tau = 0); the
+    # next sample revives it (A18).
+    silence_fail_s: float = _p(30.0, 's', 0.1, 1e6, 'a teammate not heard for this long counts as failed')
+    # An estimate counts for beta (eq. 3) while its last accepted update is this recent (A13).
+    fresh_s: float = _p(30.0, 's', 0.0, 1e6, "an estimate counts for beta this long after its last update")
+    # Estimates farther than this outside the boundary are not recorded (A26).
+    boundary_margin_m: float = _p(2.0, 'm', 0.0, 1000.0, 'estimates this far outside the boundary are not recorded')
+
+    # --- hgrid: the coverage record (1.4, A6-A9, 5.8) ---
+    sensor_range_m: float = _p(10.0, 'm', 0.1, 1000.0, 'r: the LiDAR range, the hgrid cell side at most')
+    insert_period_s: float = _p(5.0, 's', 0.1, 1e4, 'own pose and fresh estimates go into the hgrid this often')
+    fill_rule: str = _choice("disc", FILL_RULES, "disc: >= fill_disc_share of a cell within r of recorded "
+                             "positions; pts2: >= 2 recorded positions in the cell (the authors' code)")
+    fill_disc_share: float = _p(0.5, '', 0.0, 1.0, 'disc rule: the share of a cell within r of positions that fills it')
+    fill_lattice_m: float = _p(1.0, 'm', 0.05, 100.0, 'disc rule: the spacing of the points a cell is tested at')
+    footprint_min_area_m2: float = _p(25.0, 'm^2', 0.0, 1e6, 'an hgrid cell with less navigable area is not counted')
+    soft_fill: float = _p(0.85, '', 0.0, 1.0, 'soft termination: from this fill on, frontiers with too much loss are invalid')
+    hard_fill: float = _p(0.95, '', 0.0, 1.0, 'hard termination: at this fill the robot stops (if hard_enabled)')
+    hard_enabled: bool = _p(False, 'bool', None, None, 'stop at hard_fill')
+    tau_enabled: bool = _p(True, 'bool', None, None, "eq. (7): a failed teammate's points stop counting (else eq. 6)")
+    # Without deployment knowledge (no boundary given): a square this wide around the start.
+    fallback_boundary_m: float = _p(100.0, 'm', 1.0, 1e5, 'the boundary assumed when none is given')
+
+    # --- utility: eqs. (2)-(7) (1.5, A10-A16) ---
+    # kappa1: the authors' code has r / 2 (paper mode). The complete mode takes 0.8 r (the
+    # spec's ablation, A11): its viewpoints are the planner's waypoints, which stand up to
+    # d_cam (9.5 m) back from the unknown they look at, not frontier cells, and a teammate's
+    # recorded position stands for what its 10 m LiDAR saw around it. Intel lab, 3 robots,
+    # realistic sensing, seed 1: last self-stop 1253 s at r / 2, 806 s at 0.8 r; coverage
+    # then 0.993 and 0.974.
+    kappa1_m: float = _p(8.0, 'm', 0.0, 1000.0, "the sigmoid's midpoint (0.8 r; r / 2 in paper mode)")
+    kappa2_m: float = _p(0.1, 'm', 1e-3, 1000.0, "the sigmoid's steepness")
+    info_cell_m: float = _p(0.5, 'm', 0.05, 10.0, 'unknown cells are counted in blocks of this side for I and E')
+    beta_min_distance_m: float = _p(1.12, 'm', 1.0, 1000.0, 'beta = log10(max(d, this)) (>= 0.05 at 1.12 m)')
+    invalid_ratio: float = _p(0.90, '', 0.0, 1.0, 'after soft: a viewpoint losing more than this share of I_0 is invalid')
+    commit_share: float = _p(0.5, '', 0.0, 1.0, 'a target is kept until its remaining path is this share of its first')
+    relative_sensing: bool = _p(True, 'bool', None, None, 'use UWB and AoA (False: wiserx-blind)')
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if "choices" in f.metadata:
+                if value not in f.metadata["choices"]:
+                    raise ValueError(f"WiserxParams.{f.name} must be one of {', '.join(f.metadata['choices'])}, "
+                                     f"got {value!r}")
+                continue
+            if isinstance(f.default, bool):
+                if not isinstance(value, bool):
+                    raise ValueError(f"WiserxParams.{f.name} must be a bool, got {value!r}")
+                continue
+            lo, hi = f.metadata["lo"], f.metadata["hi"]
+            ok_type = isinstance(value, int) if isinstance(f.default, int) else isinstance(value, (int, float))
+            if isinstance(value, bool) or not ok_type or not math.isfinite(value) or not lo <= value <= hi:
+                kind = "an integer" if isinstance(f.default, int) else "a number"
+                raise ValueError(f"WiserxParams.{f.name} must be {kind} in [{lo:g}, {hi:g}] {f.metadata['unit']}".rstrip()
+                                 + f", got {value!r}")
+        if self.soft_fill > self.hard_fill:
+            raise ValueError(f"WiserxParams.soft_fill ({self.soft_fill:g}) must not exceed hard_fill ({self.hard_fill:g})")
+
+    @classmethod
+    def paper(cls, **changes) -> WiserxParams:
+        """The spec's paper mode: the authors' fill rule (>= 2 positions per cell), a 5 m2
+        footprint, soft 0.85 and hard 0.95, kappa1 = r / 2."""
+        return cls(**{"fill_rule": "pts2", "footprint_min_area_m2": 5.0, "hard_enabled": True, "kappa1_m": 5.0,
+                      **changes})
