@@ -118,7 +118,7 @@ class ExplorerAgent:
             last_scan_binned=self._binned_last_scan, has_planned=lambda: self._last_plan_us >= 0,
             queued=self.link.queued if self.link is not None else (lambda rtype: 0),
             on_air_until_us=self.link.on_air_until_us if self.link is not None else (lambda: 0),
-            current_target=lambda: self.targets.target))
+            current_target=lambda: self.targets.target, last_scan=lambda: self._last_scan))
         own_tasks = self.scheme.tasks()
         if self.link is not None:
             own_tasks.insert(0, Task("heartbeat", self.rates.heartbeat_hz, self._task_heartbeat))

@@ -22,6 +22,7 @@ SCHEMES: dict[str, tuple[str, str]] = {
     "independent": ("firmware.schemes.independent", "Independent"),
     "meier": ("firmware.schemes.meier.scheme", "Meier"),
     "pereira": ("firmware.schemes.pereira.scheme", "Pereira"),
+    "mrtopomap": ("firmware.schemes.mr_topomap.scheme", "MrTopoMap"),
 }
 
 ALIASES: dict[str, str] = {
@@ -30,6 +31,7 @@ ALIASES: dict[str, str] = {
     "greedy-full": "dense:greedy",
     "minpos-full": "dense:minpos",
     "meier-full": "dense:meier",
+    "mrtopomap-literal": "mrtopomap:literal",
 }
 
 

@@ -37,7 +37,7 @@ from firmware.services.targets import Candidate, Target
 from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
 from hal.interfaces import MeshLink
-from hal.samples import OdometrySample
+from hal.samples import LidarScan, OdometrySample
 
 # What a scheme may need from the robot (Scheme.needs):
 NEEDS = {
@@ -79,6 +79,9 @@ class Services:
     queued: Callable[[str], int] = lambda rtype: 0          # records of a type waiting on the link
     on_air_until_us: Callable[[], int] = lambda: 0           # when this robot's last frame ends on the air
     current_target: Callable[[], Target | None] = lambda: None   # where the robot is heading
+    # The newest scan as taken, with the pose at its time stamp (x_m, y_m, yaw_rad, scan), in
+    # the robot's odometry frame; None before the first.
+    last_scan: Callable[[], tuple[float, float, float, LidarScan] | None] = lambda: None
 
 
 @dataclass
@@ -96,6 +99,8 @@ class PlanningView:
     # a scheme may leave that place to a teammate only if the teammate reported having seen
     # it, not because it passed nearby.
     closing: bool = False
+    # The local map's cells a grid path reaches from the robot this cycle (None: not given).
+    reachable: np.ndarray | None = None
 
 
 class Scheme(ABC):
