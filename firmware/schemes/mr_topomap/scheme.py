@@ -510,6 +510,6 @@ class MrTopoMap(Scheme):
         pts = np.vstack(xy) if keys else np.zeros((0, 2))
         where = {k: pts[n] for n, k in enumerate(keys)}
         segs = [(where[a], where[b]) for a, b in sorted(self.edges) if a in where and b in where]
-        return {"title": "MR-TopoMap: own and merged teammates' vertices (red rings: open directions), own frame",
+        return {"title": "MR-TopoMap: each robot's own and merged teammates' vertices (red rings: open directions)",
                 "points": pts, "segments": np.array(segs).reshape(-1, 2, 2),
                 "highlight": np.array([self.book.remaining(k) != 0 for k in keys], bool), "what": "vertices"}
