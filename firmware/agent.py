@@ -125,7 +125,7 @@ class ExplorerAgent:
             on_air_until_us=self.link.on_air_until_us if self.link is not None else (lambda: 0),
             current_target=lambda: self.targets.target, pose_at=self.pose.pose_at,
             uwb=self.hal.uwb if self.hal.has("uwb") else None, aoa=self.hal.aoa if self.hal.has("aoa") else None,
-            deployment=self.deployment))
+            deployment=self.deployment, last_scan=lambda: self._last_scan))
         own_tasks = self.scheme.tasks()
         if self.link is not None:
             own_tasks.insert(0, Task("heartbeat", self.rates.heartbeat_hz, self._task_heartbeat))

@@ -26,6 +26,11 @@ OPTIONS = (
     Opt("--start", "pose", "start pose in metres (and degrees; default the map's yaw): once, the centre of the "
         "team's staging area (default: the map's start); once per robot, each robot's own start",
         repeat=True, metavar="X,Y[,YAW_DEG]"),
+    Opt("--spread", "float", "spread starts instead: every robot at least this much driving distance from every "
+        "other, with a random yaw (from the seed); the host alone knows the poses", unit="m", lo=0.0, hi=1e4,
+        default=0.0, metavar="M"),
+    Opt("--spread-max", "float", "with --spread: each robot at most this much driving distance from the nearest "
+        "placed before it (0: no bound)", unit="m", lo=0.0, hi=1e4, default=0.0, metavar="M"),
     WHEEL_SLIP, LIDAR_PHASE,
     SET, JSON,
     Opt("--out", "out_dir", "write mission.png and mission.json here (each replaced only by a complete new one)",
@@ -44,6 +49,10 @@ def main(args: argparse.Namespace) -> int:
     # Everything that can be refused is refused before the mission starts.
     try:
         overrides = combine_overrides(args.overrides)
+        if args.spread and args.start:
+            raise ValueError("--spread places every robot: give it or --start, not both")
+        if args.spread_max and args.spread_max < args.spread:
+            raise ValueError(f"--spread-max {args.spread_max:g} is below --spread {args.spread:g}")
         if len(args.start) not in (0, 1, args.robots):
             raise ValueError(f"--start given {len(args.start)} times: give it once (the staging area) or once per "
                              f"robot ({args.robots}, from --robots)")
@@ -56,7 +65,8 @@ def main(args: argparse.Namespace) -> int:
                         strategy=args.strategy, frames=args.frames, serial_radio=args.serial_radio,
                         serial_lidar=args.serial_lidar, serial_uwb=args.serial_uwb,
                         capture_path=None if args.capture is None else str(args.capture),
-                        wheel_slip_frac=args.wheel_slip, lidar_phase_ms=args.lidar_phase_ms, range_m=args.range_m)
+                        wheel_slip_frac=args.wheel_slip, lidar_phase_ms=args.lidar_phase_ms, range_m=args.range_m,
+                        spread_m=args.spread, spread_max_m=args.spread_max)
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
     state = {"last": 0.0, "stop": False}
 

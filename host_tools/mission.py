@@ -27,14 +27,14 @@ from hal.sim.clock import SimClock
 from hal.sim.factory import build_sim_hal
 from hal.sim.mesh import SimMeshBus
 from hal.sim.radio import SimRadioModem
-from host_tools import polygon_metrics, region_oracle
+from host_tools import merge_metrics, polygon_metrics, region_oracle
 from host_tools.capture import CaptureWriter
 from host_tools.cmd_inspect import sender_stats
 from radio_sim.air_log import AirFrame
 from radio_sim.channel import Channel
 from radio_sim.virtual_modem import open_serial_radios
 from world_sim.devices.lockstep import open_serial_sensors
-from world_sim.map_spec import Pose, resolve_map, staging_poses
+from world_sim.map_spec import Pose, resolve_map, spread_poses, staging_poses
 from world_sim.ros_map import reachable_from_starts
 from world_sim.world import World, WorldParams
 
@@ -57,6 +57,13 @@ class MissionConfig:
     # The robots' odometry frame: "shared" (start poses measured at deployment) or each
     # robot's "own" (origin at its own start, unknown to the others; the host keeps the truth).
     frames: str = "shared"
+    # Spread starts (issue 25 item 1), instead of `starts`: with spread_m > 0, every robot
+    # starts at least this far (driving distance) from every other, with a random yaw, and
+    # with spread_max_m > 0 at most that far from the nearest one placed before it
+    # (world_sim.map_spec.spread_poses, from the mission seed). The start poses, and so the
+    # relations of the robots' own frames, are known to the host only (MissionResult.start_poses).
+    spread_m: float = 0.0
+    spread_max_m: float = 0.0
     serial_radio: bool = False          # every robot's radio through a virtual RN2483 on a pty
     serial_lidar: bool = False          # every robot's LiDAR through an emulated RPLIDAR on a pty
     serial_uwb: bool = False            # every robot's UWB through an emulated DWM1001 on a pty
@@ -105,6 +112,7 @@ class MissionResult:
     reachable: np.ndarray | None = field(repr=False, default=None)
     air_frames: list[AirFrame] = field(repr=False, default_factory=list)   # every transmission
     polygon_maps: dict | None = None     # schemes with polygon maps: host_tools.polygon_metrics.report
+    frame_merges: dict | None = None     # schemes that merge frames: host_tools.merge_metrics
 
     @property
     def sim_speedup(self) -> float:
@@ -128,6 +136,7 @@ class MissionResult:
             "range_m": self.config.range_m,
             "strategy": self.config.strategy,
             "frames": self.config.frames,
+            **({"spread_m": [self.config.spread_m, self.config.spread_max_m]} if self.config.spread_m > 0 else {}),
             "world": {"wheel_slip_frac": self.world.params.wheel_slip_frac,
                       "lidar_phase_us": self.world.params.lidar_phase_us},
             "coverage": round(self.coverage, 6),
@@ -157,6 +166,7 @@ class MissionResult:
             "radio_stats": self.radio,
             "explorer_stats": self.explorer_stats(),
             **({"polygon_maps": self.polygon_maps} if self.polygon_maps is not None else {}),
+            **({"frame_merges": self.frame_merges} if self.frame_merges is not None else {}),
             # Wall-clock figures: the only keys that differ between identical runs.
             "wall_s": round(self.wall_s, 3),
             "sim_speedup": round(self.sim_speedup, 2),
@@ -232,7 +242,11 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     receptions; observer is called with the mission time and the agents once per simulated
     second (tests)."""
     occ, start, label = resolve_map(cfg.map_spec)
-    poses = start_poses(occ, start, cfg.starts, cfg.robots)
+    if cfg.spread_m > 0 and cfg.starts:
+        raise ValueError("give start poses or spread starts, not both")
+    poses = (spread_poses(occ, start, cfg.robots, cfg.spread_m, cfg.spread_max_m, cfg.seed,
+                          body_m=world_params.robot_radius_m) if cfg.spread_m > 0
+             else start_poses(occ, start, cfg.starts, cfg.robots))
     world = World(occ, poses, cfg.seed, world_params.with_slip_and_lidar_phase(cfg.wheel_slip_frac, cfg.lidar_phase_ms))
     # Scored against the free area a robot body can reach from the starts (see reachable_free);
     # the figure against the raw 4-connected free component is reported too.
@@ -287,10 +301,21 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 sampler(now_us, agents)
                 if outer is not None:
                     outer(now_us, agents)
+        merges = merge_metrics.MergeSampler(poses, cfg.frames) if merge_metrics.has_frame_merges(agents) else None
+        if merges is not None:
+            inner = observer
+
+            def observer(now_us: int, agents: list[ExplorerAgent]) -> None:
+                merges(now_us, agents)
+                if inner is not None:
+                    inner(now_us, agents)
         result = _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air_frames, mesh,
                        progress, profiler, rates, should_stop, observer)
         if sampler is not None:
             result.polygon_maps = polygon_metrics.report(agents, sampler, result.sim_s)
+        if merges is not None:
+            merges(world.now_us, agents)
+            result.frame_merges = merges.report()
         result.coverage_raw = float((world.observed_union() & reachable_raw).sum()) / int(reachable_raw.sum())
         result.start_poses = poses
         completed = True

@@ -62,15 +62,30 @@ def plot_mission(result, path: Path) -> None:
         title = geometry.get("title", title)
         xy = np.asarray(geometry.get("points", np.zeros((0, 2)))).reshape(-1, 2)
         segments = np.asarray(geometry.get("segments", np.zeros((0, 2, 2)))).reshape(-1, 2, 2)
+        if result.config.frames == "own" and i < len(result.start_poses):
+            # Each robot draws in its own frame: the host alone knows where that lies (its start pose).
+            xy, segments = _to_world(xy, result.start_poses[i]), _to_world(segments, result.start_poses[i])
         ax.add_collection(LineCollection(segments, colors=[c], linewidths=0.5, alpha=0.6))
         if len(xy):
             ax.scatter(xy[:, 0], xy[:, 1], s=4, color=c, label=f"robot {i}: {len(xy)} {geometry.get('what', 'points')}")
             marked = np.asarray(geometry.get("highlight", np.zeros(len(xy), bool)), bool)
             ax.scatter(xy[marked, 0], xy[marked, 1], s=14, facecolors="none", edgecolors="red", lw=0.5)
+    if result.config.frames == "own":
+        title += ",\neach robot's map placed by its true start pose (known to the host only)"
     ax.set_title(title, fontsize=10)
     _legend(ax, len(result.agents), 8)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _to_world(xy: np.ndarray, pose) -> np.ndarray:
+    """Points (..., 2) in a robot's own odometry frame, in the world's, its start pose given."""
+    x0, y0, yaw = pose
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.empty_like(np.asarray(xy, np.float64))
+    out[..., 0] = c * xy[..., 0] - s * xy[..., 1] + x0
+    out[..., 1] = s * xy[..., 0] + c * xy[..., 1] + y0
+    return out
 
 
 def _draw_paths(ax, occ, trial: dict, legend: bool) -> None:

@@ -34,12 +34,12 @@ def test_sizes_are_the_specs():
     assert R.MRVTX.size_bytes <= 32
 
 
-def test_the_dialect_joins_a_dialect_set_beside_the_registered_ones():
-    """Its id and record names clash with no dialect the registry holds now (it is not
-    registered itself)."""
+def test_the_dialect_is_registered_and_clashes_with_none():
+    """Every node decodes it (firmware.schemes.all_dialects, through the mrtopomap scheme);
+    its id and record names clash with no other dialect's."""
     registered = list(all_dialects())
-    assert R.DIALECT.id not in {d.id for d in registered}
-    DialectSet(registered + [R.DIALECT])
+    assert R.DIALECT in registered
+    assert [d.id for d in registered].count(R.DIALECT.id) == 1
     DialectSet([CORE, R.DIALECT])
 
 

@@ -265,3 +265,92 @@ def _nearest_roomy_cell(free: np.ndarray, roomy: np.ndarray, row0: int, col0: in
     d2 = (rows - row0) ** 2 + (cols - col0) ** 2
     i = int(np.lexsort((cols, rows, d2))[0])
     return (int(rows[i]), int(cols[i]))
+
+
+SPREAD_STEP_M = 0.2        # spread_poses measures driving distances on a lattice this coarse
+
+
+def spread_poses(occ: OccupancyMap, start: Pose, n: int, min_sep_m: float, max_sep_m: float = 0.0,
+                 seed: int = 0, clearance_m: float = 0.5, body_m: float = 0.25) -> list[Pose]:
+    """n start poses spread over the map (issue 25 item 1): each on a cell at least
+    clearance_m from any wall, all in the region a body of radius body_m can drive to from
+    `start`,
+    pairwise at least min_sep_m of driving distance apart and, with max_sep_m > 0, each but
+    the first at most max_sep_m of driving from the nearest one chosen before it (so a team
+    stays within reach of itself). Positions and yaws (uniform in [-pi, pi)) are drawn from
+    their own random stream of `seed`: the same seed, the same poses.
+
+    Driving distances are 8-connected shortest paths over roomy cells, on a lattice of
+    SPREAD_STEP_M (a lattice cell is roomy if any map cell in it is: that keeps every
+    corridor connected, and errs by at most a lattice cell per step). Raises ValueError
+    naming what does not fit."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+    if not (min_sep_m >= 0.0 and max_sep_m >= 0.0) or (max_sep_m and max_sep_m < min_sep_m):
+        raise ValueError(f"need 0 <= min_sep_m <= max_sep_m (or max_sep_m 0: no bound), got {min_sep_m}, {max_sep_m}")
+    res = occ.resolution_m
+    clearance = clearance_field_m(occ.free, res)
+    fits = clearance >= min(body_m, clearance_m)
+    r0, c0 = occ.cell_of(float(start[0]), float(start[1]))
+    seed_cell = _nearest_roomy_cell(occ.free, fits, r0, c0) if 0 <= r0 < occ.rows and 0 <= c0 < occ.cols \
+        and occ.free[r0, c0] else None
+    if seed_cell is None:
+        raise ValueError(f"no cell with {body_m:g} m clearance is reachable from the start "
+                         f"({start[0]:.3f}, {start[1]:.3f}) m on map '{occ.name}'")
+    labels, _ = ndimage.label(fits, structure=_EIGHT_CONNECTED)
+    region = labels == labels[seed_cell]
+    roomy = region & (clearance >= clearance_m)
+    f = max(1, int(round(SPREAD_STEP_M / res)))
+    rows, cols = -(-occ.rows // f), -(-occ.cols // f)
+    padded = np.zeros((rows * f, cols * f), bool)
+    padded[:occ.rows, :occ.cols] = region
+    coarse = padded.reshape(rows, f, cols, f).any(axis=(1, 3))
+    padded[:occ.rows, :occ.cols] = roomy
+    standable = padded.reshape(rows, f, cols, f).any(axis=(1, 3))
+    index = -np.ones(coarse.shape, np.int64)
+    cells = np.argwhere(coarse)
+    index[cells[:, 0], cells[:, 1]] = np.arange(len(cells))
+    src, dst, w = [], [], []
+    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        a = cells
+        b = cells + (dr, dc)
+        ok = (b[:, 0] >= 0) & (b[:, 0] < rows) & (b[:, 1] >= 0) & (b[:, 1] < cols)
+        a, b = a[ok], b[ok]
+        ok = coarse[b[:, 0], b[:, 1]]
+        a, b = a[ok], b[ok]
+        src.append(index[a[:, 0], a[:, 1]])
+        dst.append(index[b[:, 0], b[:, 1]])
+        w.append(np.full(len(a), math.hypot(dr, dc) * f * res))
+    src, dst, w = np.concatenate(src), np.concatenate(dst), np.concatenate(w)
+    graph = coo_matrix((np.concatenate([w, w]), (np.concatenate([src, dst]), np.concatenate([dst, src]))),
+                       shape=(len(cells), len(cells))).tocsr()
+    rng = np.random.default_rng([int(seed), 0x53505244])      # "SPRD": a stream of its own
+    can_stand = standable[cells[:, 0], cells[:, 1]]
+    if not can_stand.any():
+        raise ValueError(f"no cell with {clearance_m:g} m clearance is reachable from the start on map '{occ.name}'")
+    first = np.flatnonzero(can_stand)
+    chosen: list[int] = [int(first[rng.integers(len(first))])]
+    while len(chosen) < n:
+        dist = dijkstra(graph, directed=False, indices=chosen, min_only=True)
+        ok = can_stand & np.isfinite(dist) & (dist >= min_sep_m)
+        if max_sep_m:
+            ok &= dist <= max_sep_m
+        pool = np.flatnonzero(ok)
+        if not len(pool):
+            raise ValueError(f"only {len(chosen)} of {n} start poses fit {min_sep_m:g} m of driving apart"
+                             + (f" and within {max_sep_m:g} m of another" if max_sep_m else "")
+                             + f" on map '{occ.name}'")
+        chosen.append(int(pool[rng.integers(len(pool))]))
+    poses: list[Pose] = []
+    for k in chosen:
+        br, bc = cells[k]
+        block = roomy[br * f:(br + 1) * f, bc * f:(bc + 1) * f]
+        rr, cc = np.nonzero(block)
+        mid = (f - 1) / 2.0
+        m = int(np.lexsort((cc, rr, (rr - mid) ** 2 + (cc - mid) ** 2))[0])
+        x, y = occ.center_of(br * f + int(rr[m]), bc * f + int(cc[m]))
+        poses.append((float(x), float(y), float(rng.uniform(-math.pi, math.pi))))
+    return poses

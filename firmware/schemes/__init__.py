@@ -23,6 +23,7 @@ SCHEMES: dict[str, tuple[str, str]] = {
     "meier": ("firmware.schemes.meier.scheme", "Meier"),
     "pereira": ("firmware.schemes.pereira.scheme", "Pereira"),
     "wiserx": ("firmware.schemes.wiserx.scheme", "Wiserx"),
+    "mrtopomap": ("firmware.schemes.mr_topomap.scheme", "MrTopoMap"),
 }
 
 ALIASES: dict[str, str] = {
@@ -33,6 +34,7 @@ ALIASES: dict[str, str] = {
     "meier-full": "dense:meier",
     "pereira-oracle": "pereira:oracle",
     "wiserx-blind": "wiserx:blind",
+    "mrtopomap-literal": "mrtopomap:literal",
 }
 
 

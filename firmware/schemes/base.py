@@ -38,7 +38,7 @@ from firmware.services.targets import Candidate, Target
 from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
 from hal.interfaces import MeshLink, UwbRanger, WifiAoa
-from hal.samples import OdometrySample
+from hal.samples import LidarScan, OdometrySample
 
 # What a scheme may need from the robot (Scheme.needs):
 NEEDS = {
@@ -86,6 +86,9 @@ class Services:
     uwb: UwbRanger | None = None                 # with "uwb" in the scheme's needs
     aoa: WifiAoa | None = None                   # with "aoa" in the scheme's needs
     deployment: Deployment | None = None         # what the team knew before it started, if anything
+    # The newest scan as taken, with the pose at its time stamp (x_m, y_m, yaw_rad, scan), in
+    # the robot's odometry frame; None before the first.
+    last_scan: Callable[[], tuple[float, float, float, LidarScan] | None] = lambda: None
 
 
 @dataclass
@@ -103,6 +106,8 @@ class PlanningView:
     # a scheme may leave that place to a teammate only if the teammate reported having seen
     # it, not because it passed nearby.
     closing: bool = False
+    # The local map's cells a grid path reaches from the robot this cycle (None: not given).
+    reachable: np.ndarray | None = None
 
 
 class Scheme(ABC):

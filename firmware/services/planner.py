@@ -108,6 +108,7 @@ class Planner:
 
         self._tell(self.targets.end_if_seen_on_way(x_m, y_m), "seen_on_way")
         view = self._view(x_m, y_m, now_us, layers.sight, topo_dist, to_src_m)
+        view.reachable = reachable
         self.scheme.filter_waypoints(view)
         self._tell(self.targets.end_if_reached(x_m, y_m), "reached")
         view.target = self.targets.target

@@ -2,10 +2,10 @@
 
 Dialect id 5 (Bayer & Faigl 1, Meier 2, Pereira 3; 4 is left for WiSER-X). The spec numbered
 the records 4..7 when every record type lived in one table; with one dialect per scheme they
-are codes 1..4 of this dialect, same fields, same sizes (30, 6, 6, 9 bytes). Not registered
-yet: `firmware.schemes.all_dialects()` does not hold this dialect and nodes do not decode it.
-The codec takes the RecordType objects below directly, so `encode_*`/`decode_*` here work
-without the registry.
+are codes 1..4 of this dialect, same fields, same sizes (30, 6, 6, 9 bytes). Registered
+through the `mrtopomap` scheme: `firmware.schemes.all_dialects()` holds it, so every node
+decodes it. The codec takes the RecordType objects below directly, so `encode_*`/`decode_*`
+here work without the registry.
 
 Positions are decimetres in the SENDER'S OWN odometry frame, not a shared mission frame:
 16-bit signed (+-3276.7 m; quantisation <= 5 cm). Bit order inside the packed fields:
