@@ -20,9 +20,9 @@ import math
 import numpy as np
 
 from firmware.schemes.mr_topomap import descriptor as desc
-from firmware.schemes.mr_topomap.merge import SE2, MergeResult, VertexSet
+from firmware.schemes.mr_topomap.merge import SE2, MergeResult, TeammateVertices, VertexSet
 from firmware.schemes.mr_topomap.params import DEFAULT, MrTopoParams
-from firmware.schemes.mr_topomap.records import Vertex, encode_vertex
+from firmware.schemes.mr_topomap.records import Vertex
 
 SMMR_SIGMA = 0.9          # SMMR's outlier rule: farther than this many std from the mean
 
@@ -39,38 +39,27 @@ def smmr_mean(samples: np.ndarray) -> np.ndarray:
     return s[keep].mean(axis=0) if keep.any() else mean
 
 
-class LiteralMerge:
+class LiteralMerge(TeammateVertices):
     """One teammate's vertices and the translation-only merge of its frame (order-dependent)."""
 
     def __init__(self, owner: int, params: MrTopoParams = DEFAULT) -> None:
-        self.owner = owner
+        super().__init__(owner)
         self.p = params
-        self._records: dict[tuple[int, int], Vertex] = {}
         self._order: list[tuple[int, int]] = []         # keys in arrival order
         self._pending: list[tuple[int, int]] = []       # received, not yet matched against the own vertices
         self._own_seen = 0                              # own vertices already matched against the held ones
         self.samples: list[tuple[float, float]] = []
-        self._set: VertexSet | None = None
         self.merges = self.unmerges = self.corrections = 0
         self._last_T: SE2 | None = None
 
     def add(self, v: Vertex) -> bool:
-        assert v.owner == self.owner, "a vertex of another robot"
-        old = self._records.get(v.key)
-        if old is not None and encode_vertex(old) <= encode_vertex(v):
+        first = v.key not in self._records
+        if not super().add(v):
             return False
-        if old is None:
+        if first:
             self._order.append(v.key)
             self._pending.append(v.key)
-        self._records[v.key] = v
-        self._set = None
         return True
-
-    @property
-    def vertices(self) -> VertexSet:
-        if self._set is None:
-            self._set = VertexSet(self._records.values())
-        return self._set
 
     def _match(self, own_codes: np.ndarray, own_xy: np.ndarray, theirs: list[Vertex]) -> None:
         """Translations of every (own, theirs) pair scoring th_merge or more, theirs in the

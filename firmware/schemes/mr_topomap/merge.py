@@ -522,23 +522,14 @@ def estimate(own: VertexSet, theirs: VertexSet, grid: ProfileGrid | None = None,
     return decide(h, kept, refused, own, theirs, grid, params)
 
 
-class TeammateMerge:
-    """One teammate's vertices as received (duplicates collapse; any order) and the merge
-    of its frame into the own one: `estimate` re-run when asked, with the counts of changes.
-    Holds no state that changes the transform: only caches and counters."""
+class TeammateVertices:
+    """One teammate's vertices as received: per vertex the newest state (duplicates
+    collapse; any order)."""
 
-    def __init__(self, owner: int, params: MrTopoParams = DEFAULT) -> None:
+    def __init__(self, owner: int) -> None:
         self.owner = owner
-        self.p = params
         self._records: dict[tuple[int, int], Vertex] = {}
         self._set: VertexSet | None = None
-        self._last: MergeResult | None = None
-        self._last_key: tuple | None = None
-        self._last_merged: SE2 | None = None
-        self.merges = 0          # not merged -> merged
-        self.unmerges = 0        # merged -> not merged (later evidence made it ambiguous)
-        self.corrections = 0     # merged again elsewhere than the last merge, maybe after an unmerged
-        #                          spell (the paper's mismatch correction)
 
     def add(self, v: Vertex) -> bool:
         """A received vertex of this teammate; False if it was held already (the same bytes)."""
@@ -555,6 +546,23 @@ class TeammateMerge:
         if self._set is None:
             self._set = VertexSet(self._records.values())
         return self._set
+
+
+class TeammateMerge(TeammateVertices):
+    """One teammate's vertices and the merge of its frame into the own one: `estimate`
+    re-run when asked, with the counts of changes. Holds no state that changes the
+    transform: only caches and counters."""
+
+    def __init__(self, owner: int, params: MrTopoParams = DEFAULT) -> None:
+        super().__init__(owner)
+        self.p = params
+        self._last: MergeResult | None = None
+        self._last_key: tuple | None = None
+        self._last_merged: SE2 | None = None
+        self.merges = 0          # not merged -> merged
+        self.unmerges = 0        # merged -> not merged (later evidence made it ambiguous)
+        self.corrections = 0     # merged again elsewhere than the last merge, maybe after an unmerged
+        #                          spell (the paper's mismatch correction)
 
     def update(self, own: VertexSet, grid: ProfileGrid | None = None, own_map: OwnMap | None = None,
                own_map_token: object = None) -> MergeResult:
