@@ -8,7 +8,7 @@ import threading
 
 from host_tools.mission import MissionConfig, run_mission
 from host_tools.options import (FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEME, SEED,
-                                SET, WHEEL_SLIP, Opt, add_options)
+                                SET, SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread)
 from host_tools.overrides import combine_overrides, describe, params_help, params_with
 from host_tools.progress import progress_bar
 from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, strict_dumps, write_text
@@ -26,11 +26,7 @@ OPTIONS = (
     Opt("--start", "pose", "start pose in metres (and degrees; default the map's yaw): once, the centre of the "
         "team's staging area (default: the map's start); once per robot, each robot's own start",
         repeat=True, metavar="X,Y[,YAW_DEG]"),
-    Opt("--spread", "float", "spread starts instead: every robot at least this much driving distance from every "
-        "other, with a random yaw (from the seed); the host alone knows the poses", unit="m", lo=0.0, hi=1e4,
-        default=0.0, metavar="M"),
-    Opt("--spread-max", "float", "with --spread: each robot at most this much driving distance from the nearest "
-        "placed before it (0: no bound)", unit="m", lo=0.0, hi=1e4, default=0.0, metavar="M"),
+    SPREAD, SPREAD_MAX,
     WHEEL_SLIP, LIDAR_PHASE,
     SET, JSON,
     Opt("--out", "out_dir", "write mission.png and mission.json here (each replaced only by a complete new one)",
@@ -51,8 +47,7 @@ def main(args: argparse.Namespace) -> int:
         overrides = combine_overrides(args.overrides)
         if args.spread and args.start:
             raise ValueError("--spread places every robot: give it or --start, not both")
-        if args.spread_max and args.spread_max < args.spread:
-            raise ValueError(f"--spread-max {args.spread_max:g} is below --spread {args.spread:g}")
+        check_spread(args.spread, args.spread_max)
         if len(args.start) not in (0, 1, args.robots):
             raise ValueError(f"--start given {len(args.start)} times: give it once (the staging area) or once per "
                              f"robot ({args.robots}, from --robots)")

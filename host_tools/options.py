@@ -260,6 +260,19 @@ RANGE_M = Opt("--range-m", "float", "a hard radio range: robots farther apart th
               "own reach", unit="m", lo=0.0, lo_open=True, hi=1e6, metavar="M")
 FRAMES = Opt("--frames", "choice", "odometry frames: one shared by the team (start poses measured at deployment), or "
              "each robot's own, unknown to the others", choices=("shared", "own"), default="shared")
+SPREAD = Opt("--spread", "float", "spread starts instead: every robot at least this much driving distance from every "
+             "other, with a random yaw (from the seed); the host alone knows the poses", unit="m", lo=0.0, hi=1e4,
+             default=0.0, metavar="M")
+SPREAD_MAX = Opt("--spread-max", "float", "with --spread: each robot at most this much driving distance from the "
+                 "nearest placed before it (0: no bound)", unit="m", lo=0.0, hi=1e4, default=0.0, metavar="M")
+
+
+def check_spread(spread_m: float, spread_max_m: float) -> None:
+    """Refuse a --spread-max below --spread (ValueError naming both)."""
+    if spread_max_m and spread_max_m < spread_m:
+        raise ValueError(f"--spread-max {spread_max_m:g} is below --spread {spread_m:g}")
+
+
 WHEEL_SLIP = Opt("--wheel-slip", "float", WHEEL_SLIP_HELP, lo=0.0, hi=1.0, default=0.0,
                  metavar="FRAC")
 LIDAR_PHASE = Opt("--lidar-phase-ms", "float", LIDAR_PHASE_HELP, unit="ms", lo=0.0, hi=99.999,

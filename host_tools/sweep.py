@@ -51,6 +51,11 @@ class SweepSpec:
     lidar_phase_ms: float = 0.0
     # The hard radio range of every trial (MissionConfig.range_m; None: the profile's reach).
     range_m: float | None = None
+    # Odometry frames and spread starts of every trial (MissionConfig's frames, spread_m,
+    # spread_max_m): the schemes that merge maps without a common frame need both.
+    frames: str = "shared"
+    spread_m: float = 0.0
+    spread_max_m: float = 0.0
 
     def lora_strategies(self) -> tuple[str, ...]:
         return tuple(s for s in self.strategies if "radio" in build_scheme(s).needs_of() and "mesh" not in build_scheme(s).needs_of())
@@ -60,7 +65,8 @@ class SweepSpec:
         grid += [(radio, s) for radio in self.also_radios for s in self.lora_strategies()]
         return [MissionConfig(map_spec=m, robots=self.robots, seed=self.first_seed + k, max_sim_s=self.max_sim_s,
                               radio=radio, strategy=s, wheel_slip_frac=self.wheel_slip_frac,
-                              lidar_phase_ms=self.lidar_phase_ms, range_m=self.range_m)
+                              lidar_phase_ms=self.lidar_phase_ms, range_m=self.range_m, frames=self.frames,
+                              spread_m=self.spread_m, spread_max_m=self.spread_max_m)
                 for radio, s in grid for m in self.maps for k in range(self.seeds)]
 
 
@@ -118,12 +124,15 @@ def trial_key(cfg_or_report: MissionConfig | dict, overrides: Overrides = ()) ->
         c = cfg_or_report
         return (c.map_spec, c.strategy, c.radio, c.seed, c.robots, float(c.max_sim_s), tuple(overrides),
                 float(c.wheel_slip_frac), round(c.lidar_phase_ms * 1000),
-                None if c.range_m is None else float(c.range_m))
+                None if c.range_m is None else float(c.range_m), c.frames,
+                (float(c.spread_m), float(c.spread_max_m)) if c.spread_m > 0 else None)
     r = cfg_or_report
     world = r.get("world", {})
+    spread = r.get("spread_m")
     return (r["map_spec"], r["strategy"], r["radio"], r["seed"], r["robots"], float(r["max_sim_s"]),
             tuple(sorted(r.get("params_overrides", {}).items())), float(world.get("wheel_slip_frac", 0.0)),
-            int(world.get("lidar_phase_us", 0)), None if r.get("range_m") is None else float(r["range_m"]))
+            int(world.get("lidar_phase_us", 0)), None if r.get("range_m") is None else float(r["range_m"]),
+            r.get("frames", "shared"), None if spread is None else (float(spread[0]), float(spread[1])))
 
 
 def coverage_floor(coverage: float) -> float:
@@ -320,6 +329,11 @@ def _world_changed(spec: dict) -> str:
         parts.append(f"wheels slip {spec['wheel_slip_frac']:g}")
     if spec.get("lidar_phase_ms"):
         parts.append(f"LiDAR {spec['lidar_phase_ms']:g} ms off the tick")
+    if spec.get("frames", "shared") != "shared":
+        parts.append("odometry in each robot's own frame")
+    if spec.get("spread_m"):
+        parts.append(f"starts spread at least {spec['spread_m']:g} m apart"
+                     + (f", at most {spec['spread_max_m']:g} m from the nearest" if spec.get("spread_max_m") else ""))
     return ", ".join(parts)
 
 

@@ -1,10 +1,12 @@
 """Trial grids: p_max as Bayer & Faigl define it, tables and figures from a small sweep on
 local worker processes, and the same sweep on a local Ray instance when ray is installed."""
 import json
+import math
 
 import pytest
 
-from host_tools.sweep import (SweepSpec, code_fingerprint, coverage_floor, markdown, p_max, ratio_interval, run_local,
+from host_tools.cli import main as cli_main
+from host_tools.sweep import (PARTIAL_NAME, SweepSpec, code_fingerprint, coverage_floor, markdown, p_max, ratio_interval, run_local,
                                save, shortfalls)
 
 SPEC = SweepSpec(maps=("cave:4:40x40",), strategies=("minpos", "independent"), robots=2, seeds=2,
@@ -214,3 +216,26 @@ def test_a_sweep_in_a_world_with_slipping_wheels_keys_and_tabulates_its_trials_b
     with pytest.raises(SystemExit) as refused:
         main(argv + ["--wheel-slip", "1.5"])
     assert refused.value.code == 2 and "--wheel-slip: '1.5' is out of range" in capsys.readouterr().err
+
+
+def test_a_sweep_in_own_frames_with_spread_starts_runs_them_and_resumes_only_those(tmp_path, capsys):
+    argv = ["sweep", "--maps", "cave:3:30x30", "--strategies", "independent", "--robots", "2", "--seeds", "1",
+            "--max-sim-s", "10", "--jobs", "1", "--quiet", "--out", str(tmp_path), "--resume"]
+    assert cli_main(argv + ["--frames", "own", "--spread", "8", "--spread-max", "15"]) == 0
+    out, _ = capsys.readouterr()
+    assert "odometry in each robot's own frame, starts spread at least 8 m apart, at most 15 m from the nearest" in out
+    (report,) = [json.loads(line) for line in (tmp_path / PARTIAL_NAME).read_text().splitlines()]
+    assert report["frames"] == "own" and report["spread_m"] == [8.0, 15.0]
+    (a, b) = report["start_poses"]
+    assert math.hypot(a[0] - b[0], a[1] - b[1]) >= 8.0 * 0.99     # straight line <= driving distance
+    assert cli_main(argv) == 0                                   # shared frames, staged starts: another trial
+    assert "resuming: 0 trials done earlier, 1 to run" in capsys.readouterr().err
+    assert cli_main(argv + ["--frames", "own", "--spread", "8", "--spread-max", "15"]) == 0
+    assert "resuming: 1 trials done earlier, 0 to run" in capsys.readouterr().err
+
+
+def test_a_sweep_refuses_a_spread_bound_below_the_spread(tmp_path, capsys):
+    assert cli_main(["sweep", "--maps", "cave:3:30x30", "--seeds", "1", "--out", str(tmp_path),
+                     "--spread", "10", "--spread-max", "5"]) == 2
+    assert "--spread-max 5 is below --spread 10" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
