@@ -335,10 +335,10 @@ class LocalMap:
                          cell_cost=fit.cell_cost.copy(), clearance_m=fit.clearance_m.copy(),
                          standing=fit.standing.copy())
 
-    def whole_state(self) -> tuple[np.ndarray, int, int]:
-        """The state (UNKNOWN / FREE / OCCUPIED, bumps as walls) of everything mapped: the
-        window over every paged-out tile, on their bounding box; and the box's global
-        (row0, col0)."""
+    def whole_state(self, felt: bool = True) -> tuple[np.ndarray, int, int]:
+        """The state (UNKNOWN / FREE / OCCUPIED, bumps as walls unless not felt) of
+        everything mapped: the window over every paged-out tile, on their bounding box; and
+        the box's global (row0, col0)."""
         p = self.p
         t = TilePager.TILE_CELLS
         keys = list(self.pager.tile_keys())
@@ -356,7 +356,8 @@ class LocalMap:
         self.pager.load(logodds, r_lo, c_lo, (0, r_hi - r_lo, 0, c_hi - c_lo))
         logodds[self.row0 - r_lo:self.row0 - r_lo + self.n, self.col0 - c_lo:self.col0 - c_lo + self.n] = self.logodds
         state = kernels.classify(logodds, p.logodds_occupied, p.logodds_free)
-        self._mark_bumps(state, r_lo, c_lo)
+        if felt:
+            self._mark_bumps(state, r_lo, c_lo)
         if self.team is not None:
             self.team.fill_unknown(state, r_lo, c_lo)
         return state, r_lo, c_lo
