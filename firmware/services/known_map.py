@@ -191,6 +191,19 @@ class KnownMap:
         self.reachable = np.isfinite(self._dist)
         self._built_us, self._built_xy = now_us, (x_m, y_m)
 
+    def reaches_near(self, xy_m: np.ndarray, radius_m: float) -> np.ndarray:
+        """Per point (n, 2, metres): whether the body can get to a cell within radius_m of
+        it, as the map was last derived (False off the map)."""
+        res = self.p.resolution_m
+        rows = np.floor(xy_m[:, 1] / res).astype(np.int64) - self.row0
+        cols = np.floor(xy_m[:, 0] / res).astype(np.int64) - self.col0
+        inside = (rows >= 0) & (rows < self.reachable.shape[0]) & (cols >= 0) & (cols < self.reachable.shape[1])
+        out = np.zeros(len(xy_m), bool)
+        if inside.any() and self.reachable.any():
+            cells_away = ndimage.distance_transform_edt(~self.reachable)
+            out[inside] = cells_away[rows[inside], cols[inside]] * res <= radius_m
+        return out
+
     def cell_of(self, x_m: float, y_m: float) -> tuple[int, int]:
         res = self.p.resolution_m
         return int(math.floor(y_m / res)) - self.row0, int(math.floor(x_m / res)) - self.col0

@@ -204,9 +204,13 @@ class Planner:
             if not self._far_tried[f.cell]:
                 return True
         given_up = tuple(f for f in found.reachable if not self._left_to_team(f))
-        behind_felt = self._behind_felt_obstacles(found.unreachable, x_m, y_m, now_us)
-        self.frontiers = FrontiersLeft(given_up + behind_felt,
-                                       tuple(f for f in found.unreachable if f not in behind_felt))
+        if found.unreachable and not self.known.reaches_near(self.map.trail(), self.p.escape_radius_m).all():
+            # The map no longer joins the robot to where it has driven: it has closed a way
+            # the body took, so no gap it shows narrower than the body is known to be.
+            suspect = found.unreachable
+        else:
+            suspect = self._behind_felt_obstacles(found.unreachable, x_m, y_m, now_us)
+        self.frontiers = FrontiersLeft(given_up + suspect, tuple(f for f in found.unreachable if f not in suspect))
         return False
 
     def _behind_felt_obstacles(self, unreachable: tuple[Frontier, ...], x_m: float, y_m: float,
@@ -344,8 +348,9 @@ class Planner:
 class FrontiersLeft:
     """What a robot that stopped left behind, in all it had mapped: frontiers its body could
     get to but that it failed to (given_up: tried, and still there; or cut off only by
-    obstacles it felt and did not see), and frontiers behind gaps narrower than its body as
-    mapped (behind_gaps). Each hides at least report_unreachable_bit."""
+    obstacles it felt and did not see; or any it cannot reach while its map no longer joins
+    it to where it has driven), and frontiers behind gaps narrower than its body as mapped
+    (behind_gaps). Each hides at least report_unreachable_bit."""
     given_up: tuple[Frontier, ...] = ()
     behind_gaps: tuple[Frontier, ...] = ()
 
