@@ -254,6 +254,7 @@ class ExplorerAgent:
             return
         pose = self.pose.read()
         self.scheme.on_travel(pose, now_us)
+        self.local_map.mark_trail(pose.x_m, pose.y_m)
         if self.recovery.active:
             cmd = self.recovery.command(pose.x_m, pose.y_m, pose.yaw_rad, now_us)
             if cmd is not None:

@@ -3,6 +3,8 @@ frontiers found in all of it, and a robot about to stop going back to a frontier
 has left behind, along a way only the whole map shows."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from firmware import kernels
@@ -151,3 +153,104 @@ def test_a_hole_no_beam_reached_in_a_room_seen_all_round_is_no_frontier():
     left = known.frontiers()
     assert len(left.reachable) == 1
     assert left.reachable[0].stand_xy[1] < -2.0
+
+
+def _corridor_with_a_doorway(door_half_m: float) -> LocalMap:
+    """A corridor 10 m long, closed at both ends, with a doorway in its north wall at x = 5 m
+    opening on unknown ground."""
+    local_map = LocalMap(P, 5.0, 0.0)
+    _corridor(local_map, 0.0, 10.0)
+    _paint(local_map, -0.2, 0.0, -1.3, 1.3, WALL_LOGODDS)
+    _paint(local_map, 10.0, 10.2, -1.3, 1.3, WALL_LOGODDS)
+    _paint(local_map, 5.0 - door_half_m, 5.0 + door_half_m, 1.0, 1.3, FREE_LOGODDS)
+    return local_map
+
+
+def _stop(rig: PlannerRig, x_m: float, y_m: float):
+    """Plan once a second until the planner says there is nothing left: the robot gets to
+    the end of each path by the next plan (the map does not change: it has seen all it can
+    from there), and retries on tight paths whenever the planner asks for a recovery (as
+    the agent does once one ends)."""
+    for period in range(1, 60):
+        now_us = period * 1_000_000
+        plan = rig.plan(x_m, y_m, now_us)
+        if plan.done:
+            return rig.planner.frontiers
+        if plan.recover:
+            rig.targets.recovery_started()
+            rig.planner.tight_until_us = now_us + int(P.recovery_retry_s * 1e6)
+        elif len(plan.path_xy):
+            x_m, y_m = plan.path_xy[-1]
+    raise AssertionError("the planner never stopped")
+
+
+def test_a_doorway_closed_only_by_obstacles_the_robot_felt_is_given_up_not_behind_a_gap():
+    local_map = _corridor_with_a_doorway(0.4)
+    for x_m in (4.7, 5.0, 5.3):                          # stalls in the doorway, heading north
+        local_map.mark_obstacle_ahead(x_m, 0.8, math.pi / 2, 0.35)
+    left = _stop(PlannerRig(local_map, scheme="independent"), 2.0, 0.0)
+    assert len(left.given_up) == 1 and not left.behind_gaps
+    assert abs(left.given_up[0].cell[1] * P.resolution_m - 5.0) < 0.6
+
+
+def test_the_map_without_felt_obstacles_opens_what_only_they_closed():
+    bumped = _corridor_with_a_doorway(0.4)
+    for x_m in (4.7, 5.0, 5.3):
+        bumped.mark_obstacle_ahead(x_m, 0.8, math.pi / 2, 0.35)
+    narrow = _corridor_with_a_doorway(0.15)                # 0.3 m, and a niche beyond it
+    _paint(narrow, 4.3, 5.7, 1.3, 2.0, WALL_LOGODDS)
+    _paint(narrow, 4.5, 5.5, 1.3, 2.0, FREE_LOGODDS)
+    narrow.mark_obstacle_ahead(8.0, 0.0, 0.0, 0.35)
+    for local_map, open_unfelt in ((bumped, True), (narrow, False)):
+        for felt in (True, False):
+            known = KnownMap(P, local_map, felt=felt)
+            known.refresh(2.0, 0.0, 0)
+            found = known.frontiers()
+            reached = bool(found.reachable) and not found.unreachable
+            assert len(found.reachable) + len(found.unreachable) == 1
+            assert reached == (open_unfelt and not felt), (open_unfelt, felt)
+
+
+def _corridor_with_a_deep_slot() -> LocalMap:
+    """The closed corridor with a slot 0.3 m wide and 1.2 m deep through its thick north wall
+    (narrower than the body, too deep to see through), a niche beyond it opening on unknown
+    ground."""
+    local_map = LocalMap(P, 0.0, 0.0)
+    _corridor(local_map, -5.0, 5.0)
+    _paint(local_map, -5.2, -5.0, -1.3, 1.3, WALL_LOGODDS)
+    _paint(local_map, 5.0, 5.2, -1.3, 1.3, WALL_LOGODDS)
+    _paint(local_map, -1.0, 1.0, 1.0, 2.3, WALL_LOGODDS)
+    _paint(local_map, 0.0, 0.2, 1.0, 2.3, FREE_LOGODDS)
+    _paint(local_map, -0.7, 0.9, 2.3, 3.0, WALL_LOGODDS)
+    _paint(local_map, -0.5, 0.7, 2.3, 3.0, FREE_LOGODDS)
+    return local_map
+
+
+def test_the_whole_map_tells_which_places_the_body_can_get_near():
+    local_map = _corridor_with_a_deep_slot()
+    known = KnownMap(P, local_map)
+    known.refresh(-3.0, 0.0, 0)
+    near = known.reaches_near(np.array([[2.0, 0.0], [0.1, 2.7], [0.1, 1.3], [500.0, 0.0]]), 0.8)
+    assert near.tolist() == [True, False, True, False]    # the corridor, the niche, the slot's mouth, off the map
+
+
+def test_a_frontier_behind_a_narrow_gap_the_robot_has_driven_through_is_given_up():
+    # The robot's map shows the slot narrower than its body; alone, the niche's frontier is
+    # behind a gap the body does not fit. Had the robot driven from the niche (its map since
+    # drifted), that gap is not known to be narrow: it gave the frontier up.
+    for came_from_the_niche in (False, True):
+        local_map = _corridor_with_a_deep_slot()
+        if came_from_the_niche:
+            for y_m in (2.7, 1.7, 0.7):
+                local_map.mark_trail(0.1, y_m)
+        local_map.mark_trail(-3.0, 0.0)
+        left = _stop(PlannerRig(local_map, scheme="independent"), -3.0, 0.0)
+        assert len(left.given_up) == (1 if came_from_the_niche else 0)
+        assert len(left.behind_gaps) == (0 if came_from_the_niche else 1)
+
+
+def test_the_trail_keeps_a_point_a_metre():
+    local_map = LocalMap(P, 0.0, 0.0)
+    for x_m in np.arange(0.0, 3.05, 0.1):
+        local_map.mark_trail(float(x_m), 0.0)
+    assert np.allclose(local_map.trail(), [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]])

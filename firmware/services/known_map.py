@@ -153,11 +153,13 @@ def _stand_near(group: np.ndarray, reachable: np.ndarray, mi: int, mj: int) -> t
 
 class KnownMap:
     """The robot's whole dense map with the body's layers and a full grid search from where
-    the robot stood when it was derived."""
+    the robot stood when it was derived; with the obstacles the robot felt but never saw
+    (LocalMap.mark_obstacle_ahead) as walls, or, unless felt, without them."""
 
-    def __init__(self, params: ExplorationParams, local_map: LocalMap) -> None:
+    def __init__(self, params: ExplorationParams, local_map: LocalMap, felt: bool = True) -> None:
         self.p = params
         self.local_map = local_map
+        self.felt = felt
         self._built_us: int | None = None
         self._built_xy = (math.nan, math.nan)
         self.row0 = self.col0 = 0
@@ -173,7 +175,7 @@ class KnownMap:
                 and now_us - self._built_us < p.known_map_refresh_s * 1e6 \
                 and math.hypot(x_m - self._built_xy[0], y_m - self._built_xy[1]) < p.recenter_distance_m:
             return
-        state, self.row0, self.col0 = self.local_map.whole_state()
+        state, self.row0, self.col0 = self.local_map.whole_state(felt=self.felt)
         fit = BodyFit(p, tight=False).update(state, self.row0, self.col0)
         traversable = fit.traversable.copy()
         self.local_map.open_passed(traversable, state, self.row0, self.col0)
@@ -188,6 +190,19 @@ class KnownMap:
             self._dist, self._parent = kernels.dijkstra_grid(traversable, fit.cell_cost, start[0], start[1])
         self.reachable = np.isfinite(self._dist)
         self._built_us, self._built_xy = now_us, (x_m, y_m)
+
+    def reaches_near(self, xy_m: np.ndarray, radius_m: float) -> np.ndarray:
+        """Per point (n, 2, metres): whether the body can get to a cell within radius_m of
+        it, as the map was last derived (False off the map)."""
+        res = self.p.resolution_m
+        rows = np.floor(xy_m[:, 1] / res).astype(np.int64) - self.row0
+        cols = np.floor(xy_m[:, 0] / res).astype(np.int64) - self.col0
+        inside = (rows >= 0) & (rows < self.reachable.shape[0]) & (cols >= 0) & (cols < self.reachable.shape[1])
+        out = np.zeros(len(xy_m), bool)
+        if inside.any() and self.reachable.any():
+            cells_away = ndimage.distance_transform_edt(~self.reachable)
+            out[inside] = cells_away[rows[inside], cols[inside]] * res <= radius_m
+        return out
 
     def cell_of(self, x_m: float, y_m: float) -> tuple[int, int]:
         res = self.p.resolution_m

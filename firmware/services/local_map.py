@@ -157,6 +157,9 @@ def close_wall_gaps(state: np.ndarray) -> np.ndarray:
 
 # Bounded memory for mark_passed: 10 cells a metre, so 2 km of tight passages.
 MAX_PASSED_CELLS = 20_000
+# The trail (mark_trail): a point a metre, at most 20 km of them.
+TRAIL_SPACING_M = 1.0
+MAX_TRAIL_POINTS = 20_000
 
 
 class TeamView(Protocol):
@@ -185,6 +188,7 @@ class LocalMap:
         self.passed: set[tuple[int, int]] = set()
         self._last_passed: tuple[int, int] | None = None
         self._passed_cells = np.zeros((0, 2), np.int64)   # self.passed as an array, for layers()
+        self._trail: list[tuple[float, float]] = []         # where the body's centre has been (mark_trail)
         self._fits = {tight: BodyFit(params, tight) for tight in (False, True)}
         # What teammates told this robot about places it has not observed itself, set by a
         # scheme that shares maps. Planning sees it; the log-odds (this robot's own
@@ -253,6 +257,16 @@ class LocalMap:
     def forget_bumps(self) -> None:
         """Forget every obstacle mark_obstacle_ahead remembered."""
         self.bumps.clear()
+
+    def mark_trail(self, x_m: float, y_m: float) -> None:
+        """The body's centre is here now: keep a point every TRAIL_SPACING_M of the way."""
+        if len(self._trail) < MAX_TRAIL_POINTS and (
+                not self._trail or math.hypot(x_m - self._trail[-1][0], y_m - self._trail[-1][1]) >= TRAIL_SPACING_M):
+            self._trail.append((x_m, y_m))
+
+    def trail(self) -> np.ndarray:
+        """Where the body's centre has been (mark_trail), (n, 2) in metres."""
+        return np.array(self._trail, np.float64).reshape(-1, 2)
 
     def mark_passed(self, x_m: float, y_m: float) -> None:
         """The body's centre is here now, on a cell the map shows too narrow (a tight path
@@ -335,10 +349,10 @@ class LocalMap:
                          cell_cost=fit.cell_cost.copy(), clearance_m=fit.clearance_m.copy(),
                          standing=fit.standing.copy())
 
-    def whole_state(self) -> tuple[np.ndarray, int, int]:
-        """The state (UNKNOWN / FREE / OCCUPIED, bumps as walls) of everything mapped: the
-        window over every paged-out tile, on their bounding box; and the box's global
-        (row0, col0)."""
+    def whole_state(self, felt: bool = True) -> tuple[np.ndarray, int, int]:
+        """The state (UNKNOWN / FREE / OCCUPIED, bumps as walls unless not felt) of
+        everything mapped: the window over every paged-out tile, on their bounding box; and
+        the box's global (row0, col0)."""
         p = self.p
         t = TilePager.TILE_CELLS
         keys = list(self.pager.tile_keys())
@@ -356,7 +370,8 @@ class LocalMap:
         self.pager.load(logodds, r_lo, c_lo, (0, r_hi - r_lo, 0, c_hi - c_lo))
         logodds[self.row0 - r_lo:self.row0 - r_lo + self.n, self.col0 - c_lo:self.col0 - c_lo + self.n] = self.logodds
         state = kernels.classify(logodds, p.logodds_occupied, p.logodds_free)
-        self._mark_bumps(state, r_lo, c_lo)
+        if felt:
+            self._mark_bumps(state, r_lo, c_lo)
         if self.team is not None:
             self.team.fill_unknown(state, r_lo, c_lo)
         return state, r_lo, c_lo

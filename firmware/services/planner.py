@@ -61,6 +61,7 @@ class Planner:
         # Everything mapped, for routes the window and the graph cannot give and for what is
         # left anywhere before the robot stops; frontiers (global cells) it sent the robot to.
         self.known = KnownMap(params, local_map)
+        self.known_unfelt = KnownMap(params, local_map, felt=False)   # for what is left at the end
         self._far_tried: dict[tuple[int, int], bool] = {}     # True: the scheme left it to a teammate
         # Until then plans are tight (no lethal tolerance, faces at their cells' centres) and slow: the
         # retry after a recovery (the agent sets it when one ends).
@@ -203,8 +204,26 @@ class Planner:
             if not self._far_tried[f.cell]:
                 return True
         given_up = tuple(f for f in found.reachable if not self._left_to_team(f))
-        self.frontiers = FrontiersLeft(given_up, found.unreachable)
+        if found.unreachable and not self.known.reaches_near(self.map.trail(), self.p.escape_radius_m).all():
+            # The map no longer joins the robot to where it has driven: it has closed a way
+            # the body took, so no gap it shows narrower than the body is known to be.
+            suspect = found.unreachable
+        else:
+            suspect = self._behind_felt_obstacles(found.unreachable, x_m, y_m, now_us)
+        self.frontiers = FrontiersLeft(given_up + suspect, tuple(f for f in found.unreachable if f not in suspect))
         return False
+
+    def _behind_felt_obstacles(self, unreachable: tuple[Frontier, ...], x_m: float, y_m: float,
+                               now_us: int) -> tuple[Frontier, ...]:
+        """Of the frontiers the body cannot reach, those it could if the obstacles it only
+        felt were not there. Such a gap is not known to be narrower than the body (the robot
+        may have driven through it before, its pose since drifted): they count as given up,
+        not as behind gaps the body does not fit."""
+        if not unreachable or not self.map.bumps:
+            return ()
+        self.known_unfelt.refresh(x_m, y_m, now_us, force=True)
+        open_cells = [f.cell for f in self.known_unfelt.frontiers().reachable]
+        return tuple(f for f in unreachable if self._near(f.cell, open_cells))
 
     def _near(self, cell: tuple[int, int], cells) -> bool:
         """Is the frontier at this global cell one of those at `cells`, within ban_radius_m?
@@ -328,9 +347,10 @@ class Planner:
 @dataclass(frozen=True)
 class FrontiersLeft:
     """What a robot that stopped left behind, in all it had mapped: frontiers its body could
-    get to but that it failed to (given_up: tried, and still there), and frontiers behind
-    gaps narrower than its body as mapped (behind_gaps). Each hides at least
-    report_unreachable_bit."""
+    get to but that it failed to (given_up: tried, and still there; or cut off only by
+    obstacles it felt and did not see; or any it cannot reach while its map no longer joins
+    it to where it has driven), and frontiers behind gaps narrower than its body as mapped
+    (behind_gaps). Each hides at least report_unreachable_bit."""
     given_up: tuple[Frontier, ...] = ()
     behind_gaps: tuple[Frontier, ...] = ()
 
