@@ -859,18 +859,12 @@ def crack_contours(free, occupied):
 
 
 @njit(cache=True)
-def nearest_points(ref_x, ref_y, query_x, query_y, cell_m):
-    """For each query point, the index of its nearest reference point (Euclidean; the lowest
-    index on an exact tie). The reference points are sorted into square cells cell_m wide;
-    a query visits the rings of cells around its own, nearest first, and stops once every
-    point of the rings beyond is at least as far as the nearest found: rings past ring r lie
-    r whole cells away. A scan's hits against the scan before it (the slip check): both are
-    a few hundred points a few centimetres apart, where a k-d tree spends most of its time
-    descending to them."""
+def point_cells(ref_x, ref_y, cell_m):
+    """The reference points sorted into square cells cell_m wide, for nearest_in_cells:
+    (x0, y0, nx, ny, start, order), the points of cell cy * nx + cx being
+    order[start[c]:start[c + 1]] in increasing index. Built once, it serves every query
+    against the same points (the slip check asks for eleven shares of travel)."""
     n = ref_x.shape[0]
-    out = np.full(query_x.shape[0], -1, np.int64)
-    if n == 0:
-        return out
     x0 = ref_x.min()
     y0 = ref_y.min()
     nx = int((ref_x.max() - x0) / cell_m) + 1
@@ -890,6 +884,13 @@ def nearest_points(ref_x, ref_y, query_x, query_y, cell_m):
     for k in range(n):
         order[fill[key[k]]] = k
         fill[key[k]] += 1
+    return x0, y0, nx, ny, start, order
+
+
+@njit(cache=True)
+def nearest_in_cells(ref_x, ref_y, x0, y0, nx, ny, start, order, query_x, query_y, cell_m, out):
+    """nearest_points's answer for each query, into out, with the cells point_cells built
+    from ref_x, ref_y and cell_m."""
     for q in range(query_x.shape[0]):
         qx = query_x[q]
         qy = query_y[q]
@@ -920,22 +921,36 @@ def nearest_points(ref_x, ref_y, query_x, query_y, cell_m):
                 break
             r += 1
         out[q] = best
+
+
+@njit(cache=True)
+def nearest_points(ref_x, ref_y, query_x, query_y, cell_m):
+    """For each query point, the index of its nearest reference point (Euclidean; the lowest
+    index on an exact tie). The reference points are sorted into square cells cell_m wide;
+    a query visits the rings of cells around its own, nearest first, and stops once every
+    point of the rings beyond is at least as far as the nearest found: rings past ring r lie
+    r whole cells away. A scan's hits against the scan before it (the slip check): both are
+    a few hundred points a few centimetres apart, where a k-d tree spends most of its time
+    descending to them."""
+    out = np.full(query_x.shape[0], -1, np.int64)
+    if ref_x.shape[0] == 0:
+        return out
+    x0, y0, nx, ny, start, order = point_cells(ref_x, ref_y, cell_m)
+    nearest_in_cells(ref_x, ref_y, x0, y0, nx, ny, start, order, query_x, query_y, cell_m, out)
     return out
 
 
 @njit(cache=True)
-def distances_to_surface(ref_x, ref_y, normal_x, normal_y, query_x, query_y, cell_m):
+def _surface_distances(ref_x, ref_y, normal_x, normal_y, query_x, query_y, nearest, out):
     """For each query point, its distance to the surface through its nearest reference point
-    (point to line: along that point's unit normal; NaN where the point has none)."""
-    nearest = nearest_points(ref_x, ref_y, query_x, query_y, cell_m)
-    out = np.empty(query_x.shape[0], np.float64)
+    nearest[q] (point to line: along that point's unit normal; NaN where the point has none),
+    into out."""
     for q in range(query_x.shape[0]):
         k = nearest[q]
         if k < 0:
             out[q] = np.nan
         else:
             out[q] = abs((query_x[q] - ref_x[k]) * normal_x[k] + (query_y[q] - ref_y[k]) * normal_y[k])
-    return out
 
 
 @njit(cache=True)
@@ -1034,13 +1049,21 @@ def slip_misfits(ref_x, ref_y, turned_x, turned_y, travel_x, travel_y, shares, g
     moved_x = np.empty(n, np.float64)
     moved_y = np.empty(n, np.float64)
     on_surface = np.empty(n, np.float64)
+    if ref_x.shape[0] == 0:                    # no nearest point: no point counts
+        misfit[:] = np.nan
+        return misfit, counted
+    nearest = np.empty(n, np.int64)
+    distance = np.empty(n, np.float64)
+    # One sort of the reference points into cells serves every share.
+    x0, y0, nx, ny, start, order = point_cells(ref_x, ref_y, cell_m)
     for s in range(shares.shape[0]):
         dx = shares[s] * travel_x
         dy = shares[s] * travel_y
         for q in range(n):
             moved_x[q] = turned_x[q] + dx
             moved_y[q] = turned_y[q] + dy
-        distance = distances_to_surface(ref_x, ref_y, normal_x, normal_y, moved_x, moved_y, cell_m)
+        nearest_in_cells(ref_x, ref_y, x0, y0, nx, ny, start, order, moved_x, moved_y, cell_m, nearest)
+        _surface_distances(ref_x, ref_y, normal_x, normal_y, moved_x, moved_y, nearest, distance)
         m = 0
         for q in range(n):
             if not math.isnan(distance[q]):

@@ -469,6 +469,30 @@ def test_nearest_points_matches_a_brute_force_search(seed):
         assert np.array_equal(got, np.argmin(d2, axis=1))
 
 
+@pytest.mark.parametrize("seed", range(5))
+def test_cells_built_once_answer_every_query_set_as_a_brute_force_search(seed):
+    """point_cells built once and nearest_in_cells asked again and again (as the slip check
+    asks for each share of travel): every answer the brute-force nearest, the lowest index
+    on a tie. Duplicated reference points make exact ties; the query sets move from on the
+    points to far beyond their cells."""
+    rng = np.random.default_rng(seed)
+    for _ in range(10):
+        ref = rng.normal(0.0, rng.uniform(0.1, 8.0), (int(rng.integers(1, 200)), 2))
+        ref = np.concatenate([ref, ref[rng.integers(0, len(ref), len(ref) // 3)]])
+        rx, ry = ref[:, 0].copy(), ref[:, 1].copy()
+        cell_m = float(rng.uniform(0.05, 1.0))
+        x0, y0, nx, ny, start, order = kernels.point_cells(rx, ry, cell_m)
+        query = ref[rng.integers(0, len(ref), int(rng.integers(1, 200)))] + rng.normal(0.0, 0.05, (1, 2))
+        travel = rng.normal(0.0, 10.0, 2)
+        out = np.full(len(query), -7, np.int64)
+        for share in np.linspace(0.0, 1.0, 11):
+            moved = query + share * travel
+            kernels.nearest_in_cells(rx, ry, x0, y0, nx, ny, start, order, moved[:, 0].copy(), moved[:, 1].copy(),
+                                     cell_m, out)
+            d2 = ((moved[:, None, :] - ref[None, :, :]) ** 2).sum(axis=2)
+            assert np.array_equal(out, np.argmin(d2, axis=1))
+
+
 @pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 15, 16, 17, 127, 128, 129, 255, 256, 257, 1000, 3001])
 def test_pairwise_sum_equals_numpys_sum_to_the_bit(n):
     a = np.random.default_rng(n).lognormal(0.0, 3.0, n)
@@ -502,3 +526,30 @@ def test_slip_misfits_equal_the_numpy_reference_to_the_bit(seed):
         want_misfit, want_counted = ref.slip_misfits(*args, 0.2)
         assert np.array_equal(got_counted, want_counted)
         assert np.array_equal(got_misfit, want_misfit, equal_nan=True)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_slip_misfits_over_long_travel_equal_the_numpy_reference_to_the_bit(seed):
+    """As above with travel of metres, so that the shares carry the points across many of
+    the search's cells and far outside the earlier scan's."""
+    rng = np.random.default_rng(100 + seed)
+    shares = np.linspace(0.0, 1.0, 11)
+    for _ in range(6):
+        rx, ry = _scan(rng, int(rng.integers(30, 400)))
+        keep = rng.random(rx.shape) < 0.9
+        tx, ty = rx[keep] + rng.normal(0.0, 0.02, keep.sum()), ry[keep] + rng.normal(0.0, 0.02, keep.sum())
+        travel = rng.normal(0.0, 2.0, 2)
+        args = (rx, ry, tx, ty, float(travel[0]), float(travel[1]), shares, 0.3, 0.2, 0.2)
+        got_misfit, got_counted = kernels.slip_misfits(*args)
+        want_misfit, want_counted = ref.slip_misfits(*args)
+        assert np.array_equal(got_counted, want_counted)
+        assert np.array_equal(got_misfit, want_misfit, equal_nan=True)
+
+
+def test_slip_misfits_with_no_earlier_points_count_none():
+    """No earlier point, no nearest point: no share counts any point and none has a misfit."""
+    tx, ty = _scan(np.random.default_rng(0), 50)
+    misfit, counted = kernels.slip_misfits(np.zeros(0), np.zeros(0), tx, ty, 0.3, 0.0, np.linspace(0.0, 1.0, 11),
+                                           0.3, 0.2, 0.2)
+    assert np.all(np.isnan(misfit)) and misfit.shape == (11,)
+    assert np.array_equal(counted, np.zeros(11, np.int64))
