@@ -329,6 +329,65 @@ def chamfer_distances(state):
     return d_occ, d_blk
 
 
+@njit(cache=True)
+def square_dilation(mask, r):
+    """Cells within r cells (Chebyshev) of a True cell of mask: any(mask) over the square of
+    side 2 r + 1 around each cell, clipped to the grid. Two passes of running counts (rows,
+    then columns), so the cost does not grow with r."""
+    rows, cols = mask.shape
+    across = np.zeros((rows, cols), np.int32)    # True cells within r along the row
+    for i in range(rows):
+        count = 0
+        for j in range(min(r, cols)):
+            count += mask[i, j]
+        for j in range(cols):
+            if j + r < cols:
+                count += mask[i, j + r]
+            if j - r - 1 >= 0:
+                count -= mask[i, j - r - 1]
+            across[i, j] = count
+    out = np.zeros((rows, cols), np.bool_)
+    count_col = np.zeros(cols, np.int32)
+    for i in range(min(r, rows)):
+        for j in range(cols):
+            count_col[j] += across[i, j]
+    for i in range(rows):
+        for j in range(cols):
+            if i + r < rows:
+                count_col[j] += across[i + r, j]
+            if i - r - 1 >= 0:
+                count_col[j] -= across[i - r - 1, j]
+            out[i, j] = count_col[j] > 0
+    return out
+
+
+@njit(cache=True)
+def cells_near_changes(state, changed, r, i0, i1, j0, j1):
+    """The cells of [i0, i1) x [j0, j1) within r cells (Chebyshev, square_dilation) of a
+    changed cell, split into the FREE ones, listed in row-major order (free_i, free_j), and
+    a mask of the others."""
+    near = square_dilation(changed, r)
+    others = np.zeros(state.shape, np.bool_)
+    n_free = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            if near[i, j]:
+                if state[i, j] == FREE:
+                    n_free += 1
+                else:
+                    others[i, j] = True
+    free_i = np.empty(n_free, np.int64)
+    free_j = np.empty(n_free, np.int64)
+    n_free = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            if near[i, j] and state[i, j] == FREE:
+                free_i[n_free] = i
+                free_j[n_free] = j
+                n_free += 1
+    return free_i, free_j, others
+
+
 # Where in a cell the body may stand: its centre, the midpoints of its sides and its corners,
 # in half cells. A door an even number of cells wide has its middle on a cell edge.
 SUBCELL_OFFSETS = np.array([(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)],

@@ -147,6 +147,23 @@ def mark_visible(state, src_i, src_j, n_rays, max_range_cells, wanted, occupied=
 SUBCELL_OFFSETS = [(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)]
 
 
+def square_dilation(mask, r):
+    """Each cell: is any cell of the (clipped) square of side 2 r + 1 around it True?"""
+    rows, cols = mask.shape
+    out = np.zeros((rows, cols), bool)
+    for i in range(rows):
+        for j in range(cols):
+            out[i, j] = bool(mask[max(i - r, 0):i + r + 1, max(j - r, 0):j + r + 1].any())
+    return out
+
+
+def cells_near_changes(state, changed, r, i0, i1, j0, j1, free=1):
+    """The near cells of the sub-rectangle: np.nonzero of the FREE ones, a mask of the others."""
+    near = np.zeros(state.shape, bool)
+    near[i0:i1, j0:j1] = square_dilation(changed, r)[i0:i1, j0:j1]
+    return (*np.nonzero(near & (state == free)), near & (state != free))
+
+
 def best_standing_points(occupied, cells_i, cells_j, half_side_cells, reach_cells):
     """Every sub-cell point against every occupied cell's square in the kernel's window."""
     walls = np.argwhere(occupied)

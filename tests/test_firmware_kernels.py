@@ -149,6 +149,46 @@ def grids(draw, values=(0, 1)):
     return np.array(cells, np.uint8).reshape(rows, cols)
 
 
+@st.composite
+def sparse_masks(draw):
+    """A few True cells, so that a dilation leaves much of the grid False."""
+    rows = draw(st.integers(1, 40))
+    cols = draw(st.integers(1, 40))
+    mask = np.zeros((rows, cols), bool)
+    for i, j in draw(st.lists(st.tuples(st.integers(0, rows - 1), st.integers(0, cols - 1)), max_size=6)):
+        mask[i, j] = True
+    return mask
+
+
+@SETTINGS
+@given(st.one_of(sparse_masks(), grids().map(lambda g: g.astype(bool))), st.integers(0, 45))
+def test_square_dilation_matches_reference(mask, r):
+    """Radii from none through beyond the grid's side."""
+    np.testing.assert_array_equal(kernels.square_dilation(mask, r), ref.square_dilation(mask, r))
+
+
+@SETTINGS
+@given(grids(values=(0, 1, 2)), st.data())
+def test_cells_near_changes_match_reference(state, data):
+    rows, cols = state.shape
+    changed = np.zeros((rows, cols), bool)
+    if data.draw(st.booleans()):          # a few changed cells
+        for i, j in data.draw(st.lists(st.tuples(st.integers(0, rows - 1), st.integers(0, cols - 1)), max_size=4)):
+            changed[i, j] = True
+    else:                                 # changes anywhere
+        changed[...] = np.array(data.draw(st.lists(st.booleans(), min_size=rows * cols, max_size=rows * cols)),
+                                bool).reshape(rows, cols)
+    i0 = data.draw(st.integers(0, rows))
+    j0 = data.draw(st.integers(0, cols))
+    i1 = data.draw(st.integers(i0, rows))
+    j1 = data.draw(st.integers(j0, cols))
+    r = data.draw(st.integers(0, 8))
+    got = kernels.cells_near_changes(state, changed, r, i0, i1, j0, j1)
+    want = ref.cells_near_changes(state, changed, r, i0, i1, j0, j1, kernels.FREE)
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w)
+
+
 @SETTINGS
 @given(grids())
 def test_chamfer_distance_matches_reference(blocked):
