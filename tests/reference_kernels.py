@@ -128,6 +128,13 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells, unknown=0
     return np.array(out)
 
 
+def unknown_box_counts(state, half_cells, rows, cols, unknown=0):
+    """Count the unknown cells of each clipped square one by one."""
+    return np.array([int((state[max(0, i - half_cells):max(0, i + half_cells + 1),
+                                max(0, j - half_cells):max(0, j + half_cells + 1)] == unknown).sum())
+                     for i, j in zip(rows, cols)], np.int64)
+
+
 def mark_visible(state, src_i, src_j, n_rays, max_range_cells, wanted, occupied=2):
     rows, cols = state.shape
     out = np.zeros((rows, cols), bool)

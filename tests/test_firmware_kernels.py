@@ -190,6 +190,17 @@ def test_cells_near_changes_match_reference(state, data):
 
 
 @SETTINGS
+@given(grids(values=(0, 1, 2, 3)), st.integers(0, 50), st.data())
+def test_unknown_box_counts_match_reference(state, half, data):
+    """Squares inside the grid, across its edges and larger than it; none asked for too."""
+    k = data.draw(st.integers(0, 8))
+    rows = np.array(data.draw(st.lists(st.integers(0, state.shape[0] - 1), min_size=k, max_size=k)), np.int64)
+    cols = np.array(data.draw(st.lists(st.integers(0, state.shape[1] - 1), min_size=k, max_size=k)), np.int64)
+    np.testing.assert_array_equal(kernels.unknown_box_counts(state, half, rows, cols),
+                                  ref.unknown_box_counts(state, half, rows, cols, kernels.UNKNOWN))
+
+
+@SETTINGS
 @given(grids())
 def test_chamfer_distance_matches_reference(blocked):
     got = kernels.chamfer_distance(blocked.astype(bool))
