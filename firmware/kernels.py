@@ -269,33 +269,24 @@ def classify(logodds, occupied_above, free_below):
 @njit(cache=True)
 def _chamfer_passes(d):
     """Two raster passes of the 8-neighbour chamfer (steps 1 and sqrt 2), in place, over a
-    field that holds 0 at the sources and +inf elsewhere."""
+    field that holds 0 at the sources and +inf elsewhere, inside a border one cell wide of
+    +inf: a border neighbour never lowers a value, so no cell needs a test for the edges."""
     rows, cols = d.shape
     s2 = np.float32(math.sqrt(2.0))
-    for i in range(rows):
-        for j in range(cols):
-            v = d[i, j]
-            if i > 0:
-                v = min(v, d[i - 1, j] + 1.0)
-                if j > 0:
-                    v = min(v, d[i - 1, j - 1] + s2)
-                if j < cols - 1:
-                    v = min(v, d[i - 1, j + 1] + s2)
-            if j > 0:
-                v = min(v, d[i, j - 1] + 1.0)
-            d[i, j] = v
-    for i in range(rows - 1, -1, -1):
-        for j in range(cols - 1, -1, -1):
-            v = d[i, j]
-            if i < rows - 1:
-                v = min(v, d[i + 1, j] + 1.0)
-                if j > 0:
-                    v = min(v, d[i + 1, j - 1] + s2)
-                if j < cols - 1:
-                    v = min(v, d[i + 1, j + 1] + s2)
-            if j < cols - 1:
-                v = min(v, d[i, j + 1] + 1.0)
-            d[i, j] = v
+    one = np.float32(1.0)
+    # In float32 throughout: rounding is monotone, so the least of the rounded sums is the
+    # rounded least of the exact ones, as if summed wider and stored once.
+    for i in range(1, rows - 1):
+        # The row above first (no cell of the row waits for another), then along the row.
+        for j in range(1, cols - 1):
+            d[i, j] = min(min(d[i, j], d[i - 1, j] + one), min(d[i - 1, j - 1] + s2, d[i - 1, j + 1] + s2))
+        for j in range(1, cols - 1):
+            d[i, j] = min(d[i, j], d[i, j - 1] + one)
+    for i in range(rows - 2, 0, -1):
+        for j in range(cols - 2, 0, -1):
+            d[i, j] = min(min(d[i, j], d[i + 1, j] + one), min(d[i + 1, j - 1] + s2, d[i + 1, j + 1] + s2))
+        for j in range(cols - 2, 0, -1):
+            d[i, j] = min(d[i, j], d[i, j + 1] + one)
 
 
 @njit(cache=True)
@@ -304,12 +295,13 @@ def chamfer_distance(blocked):
     steps 1 and sqrt 2: exact along axes and diagonals, at most 8 % long in between).
     With no blocked cell at all every distance is +inf."""
     rows, cols = blocked.shape
-    d = np.empty((rows, cols), np.float32)
+    d = np.full((rows + 2, cols + 2), np.inf, np.float32)
     for i in range(rows):
         for j in range(cols):
-            d[i, j] = 0.0 if blocked[i, j] else np.inf
+            if blocked[i, j]:
+                d[i + 1, j + 1] = 0.0
     _chamfer_passes(d)
-    return d
+    return d[1:rows + 1, 1:cols + 1].copy()
 
 
 @njit(cache=True, parallel=True)
@@ -317,16 +309,18 @@ def chamfer_distances(state):
     """(distance to the nearest OCCUPIED cell, distance to the nearest cell that is not
     FREE), in cells; each as chamfer_distance would give it."""
     rows, cols = state.shape
-    d_occ = np.empty((rows, cols), np.float32)
-    d_blk = np.empty((rows, cols), np.float32)
+    d_occ = np.full((rows + 2, cols + 2), np.inf, np.float32)
+    d_blk = np.full((rows + 2, cols + 2), np.inf, np.float32)
     for i in range(rows):
         for j in range(cols):
             v = state[i, j]
-            d_occ[i, j] = 0.0 if v == OCCUPIED else np.inf
-            d_blk[i, j] = 0.0 if v != FREE else np.inf
+            if v == OCCUPIED:
+                d_occ[i + 1, j + 1] = 0.0
+            if v != FREE:
+                d_blk[i + 1, j + 1] = 0.0
     for k in prange(2):        # the two fields are independent: one per thread
         _chamfer_passes(d_occ if k == 0 else d_blk)
-    return d_occ, d_blk
+    return d_occ[1:rows + 1, 1:cols + 1].copy(), d_blk[1:rows + 1, 1:cols + 1].copy()
 
 
 @njit(cache=True)

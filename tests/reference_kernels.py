@@ -79,6 +79,40 @@ def chamfer_distance(blocked):
     return d
 
 
+def chamfer_raster(blocked):
+    """The chamfer's two raster passes cell by cell with edge tests, each cell's least
+    candidate taken in float64 (steps of 1 exact, of sqrt 2 as float32 sums) and stored as
+    float32: what the kernel must give to the bit, however it orders its work."""
+    rows, cols = blocked.shape
+    d = np.where(blocked, np.float32(0.0), np.float32(np.inf)).astype(np.float32)
+    s2 = np.float32(math.sqrt(2.0))
+    for i in range(rows):
+        for j in range(cols):
+            v = float(d[i, j])
+            if i > 0:
+                v = min(v, float(d[i - 1, j]) + 1.0)
+                if j > 0:
+                    v = min(v, float(d[i - 1, j - 1] + s2))
+                if j < cols - 1:
+                    v = min(v, float(d[i - 1, j + 1] + s2))
+            if j > 0:
+                v = min(v, float(d[i, j - 1]) + 1.0)
+            d[i, j] = np.float32(v)
+    for i in range(rows - 1, -1, -1):
+        for j in range(cols - 1, -1, -1):
+            v = float(d[i, j])
+            if i < rows - 1:
+                v = min(v, float(d[i + 1, j]) + 1.0)
+                if j > 0:
+                    v = min(v, float(d[i + 1, j - 1] + s2))
+                if j < cols - 1:
+                    v = min(v, float(d[i + 1, j + 1] + s2))
+            if j < cols - 1:
+                v = min(v, float(d[i, j + 1]) + 1.0)
+            d[i, j] = np.float32(v)
+    return d
+
+
 def dijkstra_grid(traversable, cost, si, sj):
     """(cost, parent as flat index): heapq pops equal costs by (row, col), the kernel's order."""
     rows, cols = traversable.shape

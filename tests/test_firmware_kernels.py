@@ -201,6 +201,16 @@ def test_unknown_box_counts_match_reference(state, half, data):
 
 
 @SETTINGS
+@given(st.one_of(grids(), sparse_masks().map(lambda m: m.astype(np.uint8))))
+def test_chamfer_distance_equals_the_plain_raster_passes_to_the_bit(blocked):
+    """Dense and sparse sources (long chains of sums), single rows and columns included."""
+    got = kernels.chamfer_distance(blocked.astype(bool))
+    want = ref.chamfer_raster(blocked.astype(bool))
+    assert got.dtype == want.dtype == np.float32
+    assert got.tobytes() == want.tobytes()
+
+
+@SETTINGS
 @given(grids())
 def test_chamfer_distance_matches_reference(blocked):
     got = kernels.chamfer_distance(blocked.astype(bool))
