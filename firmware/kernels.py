@@ -269,33 +269,24 @@ def classify(logodds, occupied_above, free_below):
 @njit(cache=True)
 def _chamfer_passes(d):
     """Two raster passes of the 8-neighbour chamfer (steps 1 and sqrt 2), in place, over a
-    field that holds 0 at the sources and +inf elsewhere."""
+    field that holds 0 at the sources and +inf elsewhere, inside a border one cell wide of
+    +inf: a border neighbour never lowers a value, so no cell needs a test for the edges."""
     rows, cols = d.shape
     s2 = np.float32(math.sqrt(2.0))
-    for i in range(rows):
-        for j in range(cols):
-            v = d[i, j]
-            if i > 0:
-                v = min(v, d[i - 1, j] + 1.0)
-                if j > 0:
-                    v = min(v, d[i - 1, j - 1] + s2)
-                if j < cols - 1:
-                    v = min(v, d[i - 1, j + 1] + s2)
-            if j > 0:
-                v = min(v, d[i, j - 1] + 1.0)
-            d[i, j] = v
-    for i in range(rows - 1, -1, -1):
-        for j in range(cols - 1, -1, -1):
-            v = d[i, j]
-            if i < rows - 1:
-                v = min(v, d[i + 1, j] + 1.0)
-                if j > 0:
-                    v = min(v, d[i + 1, j - 1] + s2)
-                if j < cols - 1:
-                    v = min(v, d[i + 1, j + 1] + s2)
-            if j < cols - 1:
-                v = min(v, d[i, j + 1] + 1.0)
-            d[i, j] = v
+    one = np.float32(1.0)
+    # In float32 throughout: rounding is monotone, so the least of the rounded sums is the
+    # rounded least of the exact ones, as if summed wider and stored once.
+    for i in range(1, rows - 1):
+        # The row above first (no cell of the row waits for another), then along the row.
+        for j in range(1, cols - 1):
+            d[i, j] = min(min(d[i, j], d[i - 1, j] + one), min(d[i - 1, j - 1] + s2, d[i - 1, j + 1] + s2))
+        for j in range(1, cols - 1):
+            d[i, j] = min(d[i, j], d[i, j - 1] + one)
+    for i in range(rows - 2, 0, -1):
+        for j in range(cols - 2, 0, -1):
+            d[i, j] = min(min(d[i, j], d[i + 1, j] + one), min(d[i + 1, j - 1] + s2, d[i + 1, j + 1] + s2))
+        for j in range(cols - 2, 0, -1):
+            d[i, j] = min(d[i, j], d[i, j + 1] + one)
 
 
 @njit(cache=True)
@@ -304,12 +295,13 @@ def chamfer_distance(blocked):
     steps 1 and sqrt 2: exact along axes and diagonals, at most 8 % long in between).
     With no blocked cell at all every distance is +inf."""
     rows, cols = blocked.shape
-    d = np.empty((rows, cols), np.float32)
+    d = np.full((rows + 2, cols + 2), np.inf, np.float32)
     for i in range(rows):
         for j in range(cols):
-            d[i, j] = 0.0 if blocked[i, j] else np.inf
+            if blocked[i, j]:
+                d[i + 1, j + 1] = 0.0
     _chamfer_passes(d)
-    return d
+    return d[1:rows + 1, 1:cols + 1].copy()
 
 
 @njit(cache=True, parallel=True)
@@ -317,16 +309,77 @@ def chamfer_distances(state):
     """(distance to the nearest OCCUPIED cell, distance to the nearest cell that is not
     FREE), in cells; each as chamfer_distance would give it."""
     rows, cols = state.shape
-    d_occ = np.empty((rows, cols), np.float32)
-    d_blk = np.empty((rows, cols), np.float32)
+    d_occ = np.full((rows + 2, cols + 2), np.inf, np.float32)
+    d_blk = np.full((rows + 2, cols + 2), np.inf, np.float32)
     for i in range(rows):
         for j in range(cols):
             v = state[i, j]
-            d_occ[i, j] = 0.0 if v == OCCUPIED else np.inf
-            d_blk[i, j] = 0.0 if v != FREE else np.inf
+            if v == OCCUPIED:
+                d_occ[i + 1, j + 1] = 0.0
+            if v != FREE:
+                d_blk[i + 1, j + 1] = 0.0
     for k in prange(2):        # the two fields are independent: one per thread
         _chamfer_passes(d_occ if k == 0 else d_blk)
-    return d_occ, d_blk
+    return d_occ[1:rows + 1, 1:cols + 1].copy(), d_blk[1:rows + 1, 1:cols + 1].copy()
+
+
+@njit(cache=True)
+def square_dilation(mask, r):
+    """Cells within r cells (Chebyshev) of a True cell of mask: any(mask) over the square of
+    side 2 r + 1 around each cell, clipped to the grid. Two passes of running counts (rows,
+    then columns), so the cost does not grow with r."""
+    rows, cols = mask.shape
+    across = np.zeros((rows, cols), np.int32)    # True cells within r along the row
+    for i in range(rows):
+        count = 0
+        for j in range(min(r, cols)):
+            count += mask[i, j]
+        for j in range(cols):
+            if j + r < cols:
+                count += mask[i, j + r]
+            if j - r - 1 >= 0:
+                count -= mask[i, j - r - 1]
+            across[i, j] = count
+    out = np.zeros((rows, cols), np.bool_)
+    count_col = np.zeros(cols, np.int32)
+    for i in range(min(r, rows)):
+        for j in range(cols):
+            count_col[j] += across[i, j]
+    for i in range(rows):
+        for j in range(cols):
+            if i + r < rows:
+                count_col[j] += across[i + r, j]
+            if i - r - 1 >= 0:
+                count_col[j] -= across[i - r - 1, j]
+            out[i, j] = count_col[j] > 0
+    return out
+
+
+@njit(cache=True)
+def cells_near_changes(state, changed, r, i0, i1, j0, j1):
+    """The cells of [i0, i1) x [j0, j1) within r cells (Chebyshev, square_dilation) of a
+    changed cell, split into the FREE ones, listed in row-major order (free_i, free_j), and
+    a mask of the others."""
+    near = square_dilation(changed, r)
+    others = np.zeros(state.shape, np.bool_)
+    n_free = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            if near[i, j]:
+                if state[i, j] == FREE:
+                    n_free += 1
+                else:
+                    others[i, j] = True
+    free_i = np.empty(n_free, np.int64)
+    free_j = np.empty(n_free, np.int64)
+    n_free = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            if near[i, j] and state[i, j] == FREE:
+                free_i[n_free] = i
+                free_j[n_free] = j
+                n_free += 1
+    return free_i, free_j, others
 
 
 # Where in a cell the body may stand: its centre, the midpoints of its sides and its corners,
@@ -669,6 +722,29 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells):
     return out
 
 
+@njit(cache=True)
+def unknown_box_counts(state, half_cells, rows, cols):
+    """UNKNOWN cells within the square of half-side half_cells around each (row, col),
+    clipped to the window: an upper bound of what a candidate there can observe, to skip
+    hopeless candidates cheaply. From one summed-area table of the window's unknown cells."""
+    n_r, n_c = state.shape
+    sat = np.zeros((n_r + 1, n_c + 1), np.int64)   # unknown cells in [0, i) x [0, j)
+    for i in range(n_r):
+        run = 0
+        for j in range(n_c):
+            if state[i, j] == UNKNOWN:
+                run += 1
+            sat[i + 1, j + 1] = sat[i, j + 1] + run
+    out = np.empty(rows.shape[0], np.int64)
+    for k in range(rows.shape[0]):
+        i0 = min(max(rows[k] - half_cells, 0), n_r)
+        i1 = min(max(rows[k] + half_cells + 1, 0), n_r)
+        j0 = min(max(cols[k] - half_cells, 0), n_c)
+        j1 = min(max(cols[k] + half_cells + 1, 0), n_c)
+        out[k] = sat[i1, j1] - sat[i0, j1] - sat[i1, j0] + sat[i0, j0]
+    return out
+
+
 _BLOCK_SHIFT = 3     # mark_visible counts the wanted cells left per block of 8 x 8 cells
 _CHECK_STEPS = 16    # and checks a ray's way ahead every this many steps
 
@@ -859,18 +935,12 @@ def crack_contours(free, occupied):
 
 
 @njit(cache=True)
-def nearest_points(ref_x, ref_y, query_x, query_y, cell_m):
-    """For each query point, the index of its nearest reference point (Euclidean; the lowest
-    index on an exact tie). The reference points are sorted into square cells cell_m wide;
-    a query visits the rings of cells around its own, nearest first, and stops once every
-    point of the rings beyond is at least as far as the nearest found: rings past ring r lie
-    r whole cells away. A scan's hits against the scan before it (the slip check): both are
-    a few hundred points a few centimetres apart, where a k-d tree spends most of its time
-    descending to them."""
+def point_cells(ref_x, ref_y, cell_m):
+    """The reference points sorted into square cells cell_m wide, for nearest_in_cells:
+    (x0, y0, nx, ny, start, order), the points of cell cy * nx + cx being
+    order[start[c]:start[c + 1]] in increasing index. Built once, it serves every query
+    against the same points (the slip check asks for eleven shares of travel)."""
     n = ref_x.shape[0]
-    out = np.full(query_x.shape[0], -1, np.int64)
-    if n == 0:
-        return out
     x0 = ref_x.min()
     y0 = ref_y.min()
     nx = int((ref_x.max() - x0) / cell_m) + 1
@@ -890,6 +960,13 @@ def nearest_points(ref_x, ref_y, query_x, query_y, cell_m):
     for k in range(n):
         order[fill[key[k]]] = k
         fill[key[k]] += 1
+    return x0, y0, nx, ny, start, order
+
+
+@njit(cache=True)
+def nearest_in_cells(ref_x, ref_y, x0, y0, nx, ny, start, order, query_x, query_y, cell_m, out):
+    """nearest_points's answer for each query, into out, with the cells point_cells built
+    from ref_x, ref_y and cell_m."""
     for q in range(query_x.shape[0]):
         qx = query_x[q]
         qy = query_y[q]
@@ -920,22 +997,36 @@ def nearest_points(ref_x, ref_y, query_x, query_y, cell_m):
                 break
             r += 1
         out[q] = best
+
+
+@njit(cache=True)
+def nearest_points(ref_x, ref_y, query_x, query_y, cell_m):
+    """For each query point, the index of its nearest reference point (Euclidean; the lowest
+    index on an exact tie). The reference points are sorted into square cells cell_m wide;
+    a query visits the rings of cells around its own, nearest first, and stops once every
+    point of the rings beyond is at least as far as the nearest found: rings past ring r lie
+    r whole cells away. A scan's hits against the scan before it (the slip check): both are
+    a few hundred points a few centimetres apart, where a k-d tree spends most of its time
+    descending to them."""
+    out = np.full(query_x.shape[0], -1, np.int64)
+    if ref_x.shape[0] == 0:
+        return out
+    x0, y0, nx, ny, start, order = point_cells(ref_x, ref_y, cell_m)
+    nearest_in_cells(ref_x, ref_y, x0, y0, nx, ny, start, order, query_x, query_y, cell_m, out)
     return out
 
 
 @njit(cache=True)
-def distances_to_surface(ref_x, ref_y, normal_x, normal_y, query_x, query_y, cell_m):
+def _surface_distances(ref_x, ref_y, normal_x, normal_y, query_x, query_y, nearest, out):
     """For each query point, its distance to the surface through its nearest reference point
-    (point to line: along that point's unit normal; NaN where the point has none)."""
-    nearest = nearest_points(ref_x, ref_y, query_x, query_y, cell_m)
-    out = np.empty(query_x.shape[0], np.float64)
+    nearest[q] (point to line: along that point's unit normal; NaN where the point has none),
+    into out."""
     for q in range(query_x.shape[0]):
         k = nearest[q]
         if k < 0:
             out[q] = np.nan
         else:
             out[q] = abs((query_x[q] - ref_x[k]) * normal_x[k] + (query_y[q] - ref_y[k]) * normal_y[k])
-    return out
 
 
 @njit(cache=True)
@@ -1034,13 +1125,21 @@ def slip_misfits(ref_x, ref_y, turned_x, turned_y, travel_x, travel_y, shares, g
     moved_x = np.empty(n, np.float64)
     moved_y = np.empty(n, np.float64)
     on_surface = np.empty(n, np.float64)
+    if ref_x.shape[0] == 0:                    # no nearest point: no point counts
+        misfit[:] = np.nan
+        return misfit, counted
+    nearest = np.empty(n, np.int64)
+    distance = np.empty(n, np.float64)
+    # One sort of the reference points into cells serves every share.
+    x0, y0, nx, ny, start, order = point_cells(ref_x, ref_y, cell_m)
     for s in range(shares.shape[0]):
         dx = shares[s] * travel_x
         dy = shares[s] * travel_y
         for q in range(n):
             moved_x[q] = turned_x[q] + dx
             moved_y[q] = turned_y[q] + dy
-        distance = distances_to_surface(ref_x, ref_y, normal_x, normal_y, moved_x, moved_y, cell_m)
+        nearest_in_cells(ref_x, ref_y, x0, y0, nx, ny, start, order, moved_x, moved_y, cell_m, nearest)
+        _surface_distances(ref_x, ref_y, normal_x, normal_y, moved_x, moved_y, nearest, distance)
         m = 0
         for q in range(n):
             if not math.isnan(distance[q]):

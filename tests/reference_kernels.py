@@ -79,6 +79,40 @@ def chamfer_distance(blocked):
     return d
 
 
+def chamfer_raster(blocked):
+    """The chamfer's two raster passes cell by cell with edge tests, each cell's least
+    candidate taken in float64 (steps of 1 exact, of sqrt 2 as float32 sums) and stored as
+    float32: what the kernel must give to the bit, however it orders its work."""
+    rows, cols = blocked.shape
+    d = np.where(blocked, np.float32(0.0), np.float32(np.inf)).astype(np.float32)
+    s2 = np.float32(math.sqrt(2.0))
+    for i in range(rows):
+        for j in range(cols):
+            v = float(d[i, j])
+            if i > 0:
+                v = min(v, float(d[i - 1, j]) + 1.0)
+                if j > 0:
+                    v = min(v, float(d[i - 1, j - 1] + s2))
+                if j < cols - 1:
+                    v = min(v, float(d[i - 1, j + 1] + s2))
+            if j > 0:
+                v = min(v, float(d[i, j - 1]) + 1.0)
+            d[i, j] = np.float32(v)
+    for i in range(rows - 1, -1, -1):
+        for j in range(cols - 1, -1, -1):
+            v = float(d[i, j])
+            if i < rows - 1:
+                v = min(v, float(d[i + 1, j]) + 1.0)
+                if j > 0:
+                    v = min(v, float(d[i + 1, j - 1] + s2))
+                if j < cols - 1:
+                    v = min(v, float(d[i + 1, j + 1] + s2))
+            if j < cols - 1:
+                v = min(v, float(d[i, j + 1]) + 1.0)
+            d[i, j] = np.float32(v)
+    return d
+
+
 def dijkstra_grid(traversable, cost, si, sj):
     """(cost, parent as flat index): heapq pops equal costs by (row, col), the kernel's order."""
     rows, cols = traversable.shape
@@ -128,6 +162,13 @@ def observable_unknown(state, cand_i, cand_j, n_rays, max_range_cells, unknown=0
     return np.array(out)
 
 
+def unknown_box_counts(state, half_cells, rows, cols, unknown=0):
+    """Count the unknown cells of each clipped square one by one."""
+    return np.array([int((state[max(0, i - half_cells):max(0, i + half_cells + 1),
+                                max(0, j - half_cells):max(0, j + half_cells + 1)] == unknown).sum())
+                     for i, j in zip(rows, cols)], np.int64)
+
+
 def mark_visible(state, src_i, src_j, n_rays, max_range_cells, wanted, occupied=2):
     rows, cols = state.shape
     out = np.zeros((rows, cols), bool)
@@ -145,6 +186,23 @@ def mark_visible(state, src_i, src_j, n_rays, max_range_cells, wanted, occupied=
 
 
 SUBCELL_OFFSETS = [(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)]
+
+
+def square_dilation(mask, r):
+    """Each cell: is any cell of the (clipped) square of side 2 r + 1 around it True?"""
+    rows, cols = mask.shape
+    out = np.zeros((rows, cols), bool)
+    for i in range(rows):
+        for j in range(cols):
+            out[i, j] = bool(mask[max(i - r, 0):i + r + 1, max(j - r, 0):j + r + 1].any())
+    return out
+
+
+def cells_near_changes(state, changed, r, i0, i1, j0, j1, free=1):
+    """The near cells of the sub-rectangle: np.nonzero of the FREE ones, a mask of the others."""
+    near = np.zeros(state.shape, bool)
+    near[i0:i1, j0:j1] = square_dilation(changed, r)[i0:i1, j0:j1]
+    return (*np.nonzero(near & (state == free)), near & (state != free))
 
 
 def best_standing_points(occupied, cells_i, cells_j, half_side_cells, reach_cells):

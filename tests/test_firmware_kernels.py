@@ -149,6 +149,67 @@ def grids(draw, values=(0, 1)):
     return np.array(cells, np.uint8).reshape(rows, cols)
 
 
+@st.composite
+def sparse_masks(draw):
+    """A few True cells, so that a dilation leaves much of the grid False."""
+    rows = draw(st.integers(1, 40))
+    cols = draw(st.integers(1, 40))
+    mask = np.zeros((rows, cols), bool)
+    for i, j in draw(st.lists(st.tuples(st.integers(0, rows - 1), st.integers(0, cols - 1)), max_size=6)):
+        mask[i, j] = True
+    return mask
+
+
+@SETTINGS
+@given(st.one_of(sparse_masks(), grids().map(lambda g: g.astype(bool))), st.integers(0, 45))
+def test_square_dilation_matches_reference(mask, r):
+    """Radii from none through beyond the grid's side."""
+    np.testing.assert_array_equal(kernels.square_dilation(mask, r), ref.square_dilation(mask, r))
+
+
+@SETTINGS
+@given(grids(values=(0, 1, 2)), st.data())
+def test_cells_near_changes_match_reference(state, data):
+    rows, cols = state.shape
+    changed = np.zeros((rows, cols), bool)
+    if data.draw(st.booleans()):          # a few changed cells
+        for i, j in data.draw(st.lists(st.tuples(st.integers(0, rows - 1), st.integers(0, cols - 1)), max_size=4)):
+            changed[i, j] = True
+    else:                                 # changes anywhere
+        changed[...] = np.array(data.draw(st.lists(st.booleans(), min_size=rows * cols, max_size=rows * cols)),
+                                bool).reshape(rows, cols)
+    i0 = data.draw(st.integers(0, rows))
+    j0 = data.draw(st.integers(0, cols))
+    i1 = data.draw(st.integers(i0, rows))
+    j1 = data.draw(st.integers(j0, cols))
+    r = data.draw(st.integers(0, 8))
+    got = kernels.cells_near_changes(state, changed, r, i0, i1, j0, j1)
+    want = ref.cells_near_changes(state, changed, r, i0, i1, j0, j1, kernels.FREE)
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w)
+
+
+@SETTINGS
+@given(grids(values=(0, 1, 2, 3)), st.integers(0, 50), st.data())
+def test_unknown_box_counts_match_reference(state, half, data):
+    """Squares inside the grid, across its edges and larger than it; none asked for too."""
+    k = data.draw(st.integers(0, 8))
+    rows = np.array(data.draw(st.lists(st.integers(0, state.shape[0] - 1), min_size=k, max_size=k)), np.int64)
+    cols = np.array(data.draw(st.lists(st.integers(0, state.shape[1] - 1), min_size=k, max_size=k)), np.int64)
+    np.testing.assert_array_equal(kernels.unknown_box_counts(state, half, rows, cols),
+                                  ref.unknown_box_counts(state, half, rows, cols, kernels.UNKNOWN))
+
+
+@SETTINGS
+@given(st.one_of(grids(), sparse_masks().map(lambda m: m.astype(np.uint8))))
+def test_chamfer_distance_equals_the_plain_raster_passes_to_the_bit(blocked):
+    """Dense and sparse sources (long chains of sums), single rows and columns included."""
+    got = kernels.chamfer_distance(blocked.astype(bool))
+    want = ref.chamfer_raster(blocked.astype(bool))
+    assert got.dtype == want.dtype == np.float32
+    assert got.tobytes() == want.tobytes()
+
+
 @SETTINGS
 @given(grids())
 def test_chamfer_distance_matches_reference(blocked):
@@ -469,6 +530,30 @@ def test_nearest_points_matches_a_brute_force_search(seed):
         assert np.array_equal(got, np.argmin(d2, axis=1))
 
 
+@pytest.mark.parametrize("seed", range(5))
+def test_cells_built_once_answer_every_query_set_as_a_brute_force_search(seed):
+    """point_cells built once and nearest_in_cells asked again and again (as the slip check
+    asks for each share of travel): every answer the brute-force nearest, the lowest index
+    on a tie. Duplicated reference points make exact ties; the query sets move from on the
+    points to far beyond their cells."""
+    rng = np.random.default_rng(seed)
+    for _ in range(10):
+        ref = rng.normal(0.0, rng.uniform(0.1, 8.0), (int(rng.integers(1, 200)), 2))
+        ref = np.concatenate([ref, ref[rng.integers(0, len(ref), len(ref) // 3)]])
+        rx, ry = ref[:, 0].copy(), ref[:, 1].copy()
+        cell_m = float(rng.uniform(0.05, 1.0))
+        x0, y0, nx, ny, start, order = kernels.point_cells(rx, ry, cell_m)
+        query = ref[rng.integers(0, len(ref), int(rng.integers(1, 200)))] + rng.normal(0.0, 0.05, (1, 2))
+        travel = rng.normal(0.0, 10.0, 2)
+        out = np.full(len(query), -7, np.int64)
+        for share in np.linspace(0.0, 1.0, 11):
+            moved = query + share * travel
+            kernels.nearest_in_cells(rx, ry, x0, y0, nx, ny, start, order, moved[:, 0].copy(), moved[:, 1].copy(),
+                                     cell_m, out)
+            d2 = ((moved[:, None, :] - ref[None, :, :]) ** 2).sum(axis=2)
+            assert np.array_equal(out, np.argmin(d2, axis=1))
+
+
 @pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 15, 16, 17, 127, 128, 129, 255, 256, 257, 1000, 3001])
 def test_pairwise_sum_equals_numpys_sum_to_the_bit(n):
     a = np.random.default_rng(n).lognormal(0.0, 3.0, n)
@@ -502,3 +587,30 @@ def test_slip_misfits_equal_the_numpy_reference_to_the_bit(seed):
         want_misfit, want_counted = ref.slip_misfits(*args, 0.2)
         assert np.array_equal(got_counted, want_counted)
         assert np.array_equal(got_misfit, want_misfit, equal_nan=True)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_slip_misfits_over_long_travel_equal_the_numpy_reference_to_the_bit(seed):
+    """As above with travel of metres, so that the shares carry the points across many of
+    the search's cells and far outside the earlier scan's."""
+    rng = np.random.default_rng(100 + seed)
+    shares = np.linspace(0.0, 1.0, 11)
+    for _ in range(6):
+        rx, ry = _scan(rng, int(rng.integers(30, 400)))
+        keep = rng.random(rx.shape) < 0.9
+        tx, ty = rx[keep] + rng.normal(0.0, 0.02, keep.sum()), ry[keep] + rng.normal(0.0, 0.02, keep.sum())
+        travel = rng.normal(0.0, 2.0, 2)
+        args = (rx, ry, tx, ty, float(travel[0]), float(travel[1]), shares, 0.3, 0.2, 0.2)
+        got_misfit, got_counted = kernels.slip_misfits(*args)
+        want_misfit, want_counted = ref.slip_misfits(*args)
+        assert np.array_equal(got_counted, want_counted)
+        assert np.array_equal(got_misfit, want_misfit, equal_nan=True)
+
+
+def test_slip_misfits_with_no_earlier_points_count_none():
+    """No earlier point, no nearest point: no share counts any point and none has a misfit."""
+    tx, ty = _scan(np.random.default_rng(0), 50)
+    misfit, counted = kernels.slip_misfits(np.zeros(0), np.zeros(0), tx, ty, 0.3, 0.0, np.linspace(0.0, 1.0, 11),
+                                           0.3, 0.2, 0.2)
+    assert np.all(np.isnan(misfit)) and misfit.shape == (11,)
+    assert np.array_equal(counted, np.zeros(11, np.int64))

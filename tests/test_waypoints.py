@@ -5,7 +5,7 @@ import numpy as np
 from hypothesis import given, settings, strategies as st
 
 from firmware import kernels
-from firmware.services.waypoints import ObservableUnknownMemo, unknown_box_counts
+from firmware.services.waypoints import ObservableUnknownMemo
 
 SETTINGS = settings(max_examples=60, deadline=None)
 
@@ -15,17 +15,6 @@ def states(draw, rows=st.integers(1, 45), cols=st.integers(1, 45), values=(0, 1,
     r, c = draw(rows), draw(cols)
     cells = draw(st.lists(st.sampled_from(values), min_size=r * c, max_size=r * c))
     return np.array(cells, np.uint8).reshape(r, c)
-
-
-@SETTINGS
-@given(states(), st.integers(0, 50), st.data())
-def test_unknown_box_counts_count_the_unknown_cells_of_each_clipped_square(state, half, data):
-    k = data.draw(st.integers(0, 8))
-    rows = np.array(data.draw(st.lists(st.integers(0, state.shape[0] - 1), min_size=k, max_size=k)), np.int64)
-    cols = np.array(data.draw(st.lists(st.integers(0, state.shape[1] - 1), min_size=k, max_size=k)), np.int64)
-    expected = [int((state[max(0, i - half):i + half + 1, max(0, j - half):j + half + 1] == kernels.UNKNOWN).sum())
-                for i, j in zip(rows, cols)]
-    np.testing.assert_array_equal(unknown_box_counts(state, half, rows, cols), np.array(expected, np.int64))
 
 
 @SETTINGS

@@ -5,9 +5,10 @@ recomputed only near the cells whose state changed.
 Every output at a cell depends only on the state within DEPENDENCY cells of it: the two
 distance fields are read only up to a cap (beyond it the inflation cost is zero and the
 follower's room is "plenty"), and a cell's best standing point looks only at the walls
-within its reach. So a cycle re-derives the tiles near a change, each group of them on a
-box that reaches far enough past them for every value inside to be exact, and keeps the
-rest. On cells that are not FREE (never on a path) the layers hold fixed values.
+within its reach. So a cycle re-derives the cells within that reach of a change, the
+distance fields on a box that reaches far enough past them for every value there to be
+exact, and keeps the rest. On cells that are not FREE (never on a path) the layers hold
+fixed values.
 """
 from __future__ import annotations
 
@@ -142,15 +143,17 @@ class BodyFit:
         return fit
 
     def _redo_near(self, changed: np.ndarray, state: np.ndarray) -> None:
-        """Re-derive self._fit on the tiles within the dependency reach of a changed cell:
-        each group of such tiles on its bounding box, widened so that every value inside is
-        exact."""
+        """Re-derive self._fit on the cells within the dependency reach of a changed cell:
+        the tiles holding them grouped, each group on its bounding box widened so that every
+        value inside is exact."""
         t = TILE_CELLS
         n_r, n_c = state.shape
         tr, tc = -(-n_r // t), -(-n_c // t)
         padded = np.zeros((tr * t, tc * t), bool)
         padded[:n_r, :n_c] = changed
-        tiles = padded.reshape(tr, t, tc, t).any(axis=(1, 3))
+        # Any over each tile's rows, then over its columns: reductions along contiguous memory.
+        rows_any = padded.view(np.uint8).reshape(tr, t, tc * t).max(axis=1)
+        tiles = rows_any.reshape(tr, tc, t).max(axis=2).view(bool)
         reach_tiles = -(-self.dependency_cells // t)
         dirty = ndimage.binary_dilation(tiles, structure=np.ones((2 * reach_tiles + 1,) * 2, bool))
         if dirty.mean() > _FULL_PASS_SHARE:
@@ -162,50 +165,66 @@ class BodyFit:
             inner = (rows.start * t, min(rows.stop * t, n_r), cols.start * t, min(cols.stop * t, n_c))
             box = (max(inner[0] - margin, 0), min(inner[1] + margin, n_r),
                    max(inner[2] - margin, 0), min(inner[3] + margin, n_c))
-            self._fit_box(state, self._fit, box, inner)
+            self._fit_box(state, self._fit, box, inner, changed)
 
     def _fit_box(self, state: np.ndarray, fit: Fit, box: tuple[int, int, int, int],
-                 inner: tuple[int, int, int, int] | None) -> None:
-        """Derive the layers on state[box] and write them to fit on inner (all of box if None)."""
+                 inner: tuple[int, int, int, int] | None, changed: np.ndarray | None = None) -> None:
+        """Derive the layers on state[box] and write them to fit on inner (all of box if None);
+        with `changed`, only on the cells of inner within the dependency reach of a changed
+        cell (the others keep their values: nothing they depend on changed)."""
         b = (slice(box[0], box[1]), slice(box[2], box[3]))
         crop = np.ascontiguousarray(state[b])   # one kernel signature, whatever the box
-        d_occ, d_blk = kernels.chamfer_distances(crop)
-        np.minimum(d_occ, self.cap_cells, out=d_occ)
-        np.minimum(d_blk, self.cap_cells, out=d_blk)
-        traversable, clearance_m, standing = self._body_fit(crop, d_occ)
+        i0, i1, j0, j1 = box if inner is None else inner
+        if changed is None:         # every cell of inner: as if each had changed
+            near_changed, reach = np.ones(crop.shape, bool), 0
+        else:                       # changes outside the box lie beyond the reach from inner
+            near_changed, reach = np.ascontiguousarray(changed[b]), self.dependency_cells
+        ci, cj, others = kernels.cells_near_changes(crop, near_changed, reach, i0 - box[0], i1 - box[0],
+                                                    j0 - box[2], j1 - box[2])
+        # Cells not FREE hold fixed values (never on a path).
+        for out, value in zip(fit, (False, 0.0, 0, 1.0)):
+            out[b][others] = value
+        if not len(ci):
+            return
+        # The distance fields on the FREE cells' bounding box, widened by a box's margin.
+        margin = self.dependency_cells + 2
+        s0, t0 = max(ci.min() - margin, 0), max(cj.min() - margin, 0)
+        sub = np.ascontiguousarray(crop[s0:min(ci.max() + 1 + margin, crop.shape[0]),
+                                        t0:min(cj.max() + 1 + margin, crop.shape[1])])
+        ci_sub, cj_sub = ci - s0, cj - t0
+        d_occ, d_blk = kernels.chamfer_distances(sub)
+        at_sub = ci_sub * sub.shape[1] + cj_sub      # flat indices: far cheaper than (i, j) pairs
+        d_occ = np.minimum(np.reshape(d_occ, -1, copy=False)[at_sub], self.cap_cells)
+        d_blk = np.minimum(np.reshape(d_blk, -1, copy=False)[at_sub], self.cap_cells)
+        traversable, clearance_m, standing = self._body_fit(sub, ci_sub, cj_sub, d_occ)
         p = self.p
         cost = 1.0 + p.inflation_cost_weight * inflation(d_blk * p.resolution_m - self.body_m,
                                                          p.inflation_radius_m - self.body_m, p.inflation_decay_per_m)
-        not_free = crop != kernels.FREE
-        clearance_m[not_free] = 0.0
-        cost[not_free] = 1.0
-        i0, i1, j0, j1 = box if inner is None else inner
-        src = (slice(i0 - box[0], i1 - box[0]), slice(j0 - box[2], j1 - box[2]))
-        dst = (slice(i0, i1), slice(j0, j1))
+        at = (ci + box[0]) * state.shape[1] + cj + box[2]
         for out, layer in zip(fit, (traversable, clearance_m, standing, cost)):
-            out[dst] = layer[src]
+            np.reshape(out, -1, copy=False)[at] = layer     # a view (or an error), never a copy
 
-    def _body_fit(self, crop: np.ndarray, d_occ_cells: np.ndarray):
-        """(traversable, clearance in m, best point) of every cell of crop. Cells far from
+    def _body_fit(self, crop: np.ndarray, ci: np.ndarray, cj: np.ndarray, d_occ_cells: np.ndarray):
+        """(traversable, clearance in m, best point) of the FREE cells (ci, cj) of crop, whose
+        distances to the nearest occupied cell (capped) are d_occ_cells. Cells far from
         walls fit the body at their centre; cells near them are settled by
         kernels.best_standing_points with the wall faces where expected, or (tight) with
         them at the occupied cells' centres."""
         res = self.p.resolution_m
         h = EXPECTED_FACE_HALF_SIDE_CELLS
-        free = crop == kernels.FREE
         clearance_cells = np.maximum(d_occ_cells - h, 0.0)
         # A cell a little beyond where the centre surely fits still goes to the kernel, so that
         # a path through a door an even number of cells wide runs down its middle.
-        sure = free & (d_occ_cells >= self.sure_cells)
+        sure = d_occ_cells >= self.sure_cells
         hopeless = d_occ_cells + _HALF_DIAGONAL < self.body_cells
-        band_i, band_j = np.nonzero(free & ~sure & ~hopeless)
+        band = np.nonzero(~sure & ~hopeless)[0]
         traversable = sure.copy()
-        standing = np.zeros(crop.shape, np.int8)
-        if len(band_i):
+        standing = np.zeros(len(ci), np.int8)
+        if len(band):
             occupied = crop == kernels.OCCUPIED
             face = 0.0 if self.tight else h
-            room, best = kernels.best_standing_points(occupied, band_i, band_j, face, self.reach_cells)
-            traversable[band_i, band_j] = room >= self.body_cells
-            standing[band_i, band_j] = best
-            clearance_cells[band_i, band_j] = room - (h - face)
+            room, best = kernels.best_standing_points(occupied, ci[band], cj[band], face, self.reach_cells)
+            traversable[band] = room >= self.body_cells
+            standing[band] = best
+            clearance_cells[band] = room - (h - face)
         return traversable, (clearance_cells * res).astype(np.float32), standing

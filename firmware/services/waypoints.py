@@ -23,31 +23,6 @@ class Waypoint:
     e_bit: float
 
 
-def unknown_box_counts(state: np.ndarray, half_cells: int, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """Unknown cells within the square of half-side half_cells around each (row, col): an
-    upper bound of what a candidate there can observe, to skip hopeless candidates cheaply."""
-    n_r, n_c = state.shape
-    row_lines, i0, i1 = _box_lines(rows, half_cells, n_r)
-    col_lines, j0, j1 = _box_lines(cols, half_cells, n_c)
-    # Unknown cells in each block between consecutive lines, summed into a summed-area table
-    # on the lines only: the boxes' corners are all on them.
-    unknown = (state == kernels.UNKNOWN).view(np.uint8)
-    blocks = np.add.reduceat(unknown, row_lines[row_lines < n_r], axis=0, dtype=np.int32)
-    blocks = np.add.reduceat(blocks, col_lines[col_lines < n_c], axis=1)
-    sat = np.zeros((len(row_lines), len(col_lines)), np.int64)
-    sat[1:, 1:] = blocks.cumsum(0).cumsum(1)[:len(row_lines) - 1, :len(col_lines) - 1]
-    return sat[i1, j1] - sat[i0, j1] - sat[i1, j0] + sat[i0, j0]
-
-
-def _box_lines(centres: np.ndarray, half_cells: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The boxes' edges along one axis, clipped to [0, n]: the sorted distinct lines (0
-    among them), and for each box the index of its low and of its high edge there."""
-    lo = np.clip(centres - half_cells, 0, n)
-    hi = np.clip(centres + half_cells + 1, 0, n)
-    lines, index = np.unique(np.concatenate([[0], lo, hi]), return_inverse=True)
-    return lines, index[1:1 + len(lo)], index[1 + len(lo):]
-
-
 # A change of state marks the cells of its block (this many cells a side) changed, and the
 # remembered counts of every block within ray reach are forgotten.
 MEMO_BLOCK_CELLS = 10
@@ -195,7 +170,7 @@ class WaypointSet:
         cand = np.argwhere(reachable[step // 2::step, step // 2::step]) * step + step // 2
         if len(cand):
             cells_needed = p.min_cluster_entropy_bit / p.entropy_per_cell_bit
-            cand = cand[unknown_box_counts(state, int(max_range_cells), cand[:, 0], cand[:, 1]) >= cells_needed]
+            cand = cand[kernels.unknown_box_counts(state, int(max_range_cells), cand[:, 0], cand[:, 1]) >= cells_needed]
         if not len(cand):
             return cand.reshape(0, 2), np.zeros(0)
         counts = self._observable.counts(local_map, state, cand[:, 0].astype(np.int64), cand[:, 1].astype(np.int64))
