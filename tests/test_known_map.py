@@ -60,16 +60,25 @@ def test_the_whole_map_holds_the_window_over_the_paged_out_tiles():
     assert door.hidden_bit >= P.report_unreachable_bit
 
 
-def test_a_frontier_behind_a_gap_narrower_than_the_body_is_found_but_not_reached():
+def _corridor_with_a_deep_slot(slot_cells: int, niche: bool) -> LocalMap:
+    """The corridor, closed at both ends, with a slot `slot_cells` cells wide and 1.2 m deep
+    through its thick north wall (too deep to see through from the corridor), unknown beyond
+    it or, with a niche, a free niche 1.2 m wide beyond it opening on unknown ground."""
     local_map = LocalMap(P, 0.0, 0.0)
     _corridor(local_map, -5.0, 5.0)
     _paint(local_map, -5.2, -5.0, -1.3, 1.3, WALL_LOGODDS)
     _paint(local_map, 5.0, 5.2, -1.3, 1.3, WALL_LOGODDS)
-    # A slot 0.5 m wide (the body's width) and 1.2 m deep through a thick wall: the robot can
-    # neither pass it nor look through it from the corridor.
     _paint(local_map, -1.0, 1.0, 1.0, 2.3, WALL_LOGODDS)
-    _paint(local_map, 0.0, 0.4, 1.0, 2.3, FREE_LOGODDS)
-    known = KnownMap(P, local_map)
+    _paint(local_map, 0.0, (slot_cells - 1) * P.resolution_m, 1.0, 2.3, FREE_LOGODDS)
+    if niche:
+        _paint(local_map, -0.7, 0.9, 2.3, 3.0, WALL_LOGODDS)
+        _paint(local_map, -0.5, 0.7, 2.3, 3.0, FREE_LOGODDS)
+    return local_map
+
+
+def test_a_frontier_behind_a_gap_narrower_than_the_body_is_found_but_not_reached():
+    # A slot 0.5 m wide (the body's width): the robot can neither pass it nor look through it.
+    known = KnownMap(P, _corridor_with_a_deep_slot(slot_cells=5, niche=False))
     known.refresh(0.0, 0.0, 0)
     left = known.frontiers()
     assert not left.reachable and len(left.unreachable) == 1
@@ -211,23 +220,10 @@ def test_the_map_without_felt_obstacles_opens_what_only_they_closed():
             assert reached == (open_unfelt and not felt), (open_unfelt, felt)
 
 
-def _corridor_with_a_deep_slot() -> LocalMap:
-    """The closed corridor with a slot 0.3 m wide and 1.2 m deep through its thick north wall
-    (narrower than the body, too deep to see through), a niche beyond it opening on unknown
-    ground."""
-    local_map = LocalMap(P, 0.0, 0.0)
-    _corridor(local_map, -5.0, 5.0)
-    _paint(local_map, -5.2, -5.0, -1.3, 1.3, WALL_LOGODDS)
-    _paint(local_map, 5.0, 5.2, -1.3, 1.3, WALL_LOGODDS)
-    _paint(local_map, -1.0, 1.0, 1.0, 2.3, WALL_LOGODDS)
-    _paint(local_map, 0.0, 0.2, 1.0, 2.3, FREE_LOGODDS)
-    _paint(local_map, -0.7, 0.9, 2.3, 3.0, WALL_LOGODDS)
-    _paint(local_map, -0.5, 0.7, 2.3, 3.0, FREE_LOGODDS)
-    return local_map
 
 
 def test_the_whole_map_tells_which_places_the_body_can_get_near():
-    local_map = _corridor_with_a_deep_slot()
+    local_map = _corridor_with_a_deep_slot(slot_cells=3, niche=True)
     known = KnownMap(P, local_map)
     known.refresh(-3.0, 0.0, 0)
     near = known.reaches_near(np.array([[2.0, 0.0], [0.1, 2.7], [0.1, 1.3], [500.0, 0.0]]), 0.8)
@@ -239,7 +235,7 @@ def test_a_frontier_behind_a_narrow_gap_the_robot_has_driven_through_is_given_up
     # behind a gap the body does not fit. Had the robot driven from the niche (its map since
     # drifted), that gap is not known to be narrow: it gave the frontier up.
     for came_from_the_niche in (False, True):
-        local_map = _corridor_with_a_deep_slot()
+        local_map = _corridor_with_a_deep_slot(slot_cells=3, niche=True)
         if came_from_the_niche:
             for y_m in (2.7, 1.7, 0.7):
                 local_map.mark_trail(0.1, y_m)
