@@ -295,20 +295,10 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
             agents.append(agent)
         sampler = polygon_metrics.ErrorSampler() if polygon_metrics.has_polygons(agents) else None
         if sampler is not None:
-            outer = observer
-
-            def observer(now_us: int, agents: list[ExplorerAgent]) -> None:
-                sampler(now_us, agents)
-                if outer is not None:
-                    outer(now_us, agents)
+            observer = _observers(sampler, observer)
         merges = merge_metrics.MergeSampler(poses, cfg.frames) if merge_metrics.has_frame_merges(agents) else None
         if merges is not None:
-            inner = observer
-
-            def observer(now_us: int, agents: list[ExplorerAgent]) -> None:
-                merges(now_us, agents)
-                if inner is not None:
-                    inner(now_us, agents)
+            observer = _observers(merges, observer)
         result = _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air_frames, mesh,
                        progress, profiler, rates, should_stop, observer)
         if sampler is not None:
@@ -336,6 +326,16 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
 
 # Deployment knowledge (services.deployment) comes as navigable area per square of this side.
 PLAN_CELL_M = 1.0
+
+
+def _observers(first: Callable[[int, list[ExplorerAgent]], None],
+               then: Callable[[int, list[ExplorerAgent]], None] | None) -> Callable[[int, list[ExplorerAgent]], None]:
+    """One mission observer that calls first, then (if any) then."""
+    def observer(now_us: int, agents: list[ExplorerAgent]) -> None:
+        first(now_us, agents)
+        if then is not None:
+            then(now_us, agents)
+    return observer
 
 
 def deployment(occ, reachable: np.ndarray, start: Pose, frames: str, robots: int) -> Deployment:

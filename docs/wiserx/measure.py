@@ -10,6 +10,7 @@ import sys
 import numpy as np
 
 import host_tools.mission as mission
+from recorded_world import record_worlds
 from world_sim.world import WorldParams
 
 
@@ -18,15 +19,7 @@ def main(argv):
     robots = int(argv[3]) if len(argv) > 3 else 3
     profile = argv[4] if len(argv) > 4 else "realistic"
     frames = argv[5] if len(argv) > 5 else "own"
-    worlds = []
-    base = mission.World
-
-    class Recorded(base):
-        def __init__(self, *a, **k):
-            super().__init__(*a, **k)
-            worlds.append(self)
-
-    mission.World = Recorded
+    worlds = record_worlds()
     marks = {"t_90_s": None, "t_95_s": None, "overlap_at_t90": None, "overlap_at_t95": None}
     stops = {}
     reach = {}

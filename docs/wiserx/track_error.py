@@ -13,21 +13,14 @@ import sys
 import numpy as np
 
 import host_tools.mission as mission
+from recorded_world import record_worlds
 from world_sim.world import WorldParams
 
 
 def main(argv):
     map_spec, secs, profile = argv[0], float(argv[1]), argv[2]
     seed = int(argv[3]) if len(argv) > 3 else 1
-    worlds, errs, avail = [], [], []
-    base = mission.World
-
-    class Recorded(base):
-        def __init__(self, *a, **k):
-            super().__init__(*a, **k)
-            worlds.append(self)
-
-    mission.World = Recorded
+    worlds, errs, avail = record_worlds(), [], []
 
     def observe(now_us, agents):
         if now_us < 20_000_000:
