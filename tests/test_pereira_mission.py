@@ -1,6 +1,7 @@
 """Pereira et al.'s scheme end to end on the simulated HAL: a small team explores a cave by
 itself over eu868-g3, and every robot ends holding the same records and so the same
 region graph (pereira.md 6.3 bars 1, 2 and 8, on a small map)."""
+from firmware.comms.frame import decode_frame
 from host_tools.mission import MissionConfig, run_mission
 
 
@@ -15,3 +16,26 @@ def test_a_team_finishes_a_cave_and_every_robot_holds_the_same_region_graph():
     stores = [a.scheme.store for a in r.agents]
     assert len({s.digest() for s in stores}) == 1
     assert len({s.graph().digest() for s in stores}) == 1
+
+
+def test_records_lost_once_on_their_way_to_a_robot_still_reach_it_before_the_mission_ends():
+    """Every place, gate and claim robot 1 sends is lost once on its way to robot 0 (any
+    sender's frame that first carries it); later copies get through. A record sent as its
+    origin finishes is repaired too: the mission does not end while a teammate's summary
+    shows it lacking, so every robot ends with the same records."""
+    offered: set[tuple[str, int]] = set()
+
+    def lose_first_copy(sender: int, receiver: int, payload: bytes) -> bool:
+        frame = decode_frame(payload).frame
+        if receiver != 0 or frame is None:
+            return False
+        firsts = {(name, v["oseq"]) for name, v in frame.records
+                  if name in ("place", "gate", "claim") and v["sender_id"] == 1} - offered
+        offered.update(firsts)
+        return bool(firsts)
+
+    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=3, seed=1, strategy="pereira", max_sim_s=900,
+                                  radio="eu868-g3"), loss_rule=lose_first_copy)
+    assert r.termination == "complete" and offered
+    stores = [a.scheme.store for a in r.agents]
+    assert len({s.digest() for s in stores}) == 1

@@ -39,8 +39,9 @@ from firmware.schemes.pereira.gossip import Holdings
 from firmware.schemes.pereira.labels import NONE as NO_LABEL
 from firmware.schemes.pereira.labels import label_grid
 from firmware.schemes.pereira.params import with_tuning
-from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_MAX_DM, ORACLE_ORIGIN, OSEQ_BITS, Claim,
-                                              Gate, Intent, Place, Summary, dm, encode, serial_newer, typed, values_of)
+from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_MAX_DM, ORACLE_ORIGIN, OSEQ_BITS,
+                                              SUMMARY_SLOTS, Claim, Gate, Intent, Place, Summary, dm, encode,
+                                              serial_newer, typed, values_of)
 from firmware.schemes.pereira.regions import RegionGraph
 from firmware.schemes.pereira.store import Store
 from firmware.services.pose import TravelMilestones
@@ -50,6 +51,10 @@ IDLE, EXPLORING, DONE = 0, 1, 2            # records.INTENT_STATES
 LINK_BACK_MAX = 15                         # the place record's 4-bit link_back
 PUSH_BACKLOG = 4                           # pushed records waiting on the link at most
 NEWS_READ_S = 0.2                          # a frame that left the air is read within this long
+# A finished robot keeps the mission going while a teammate's summary, heard less than this
+# many summary periods ago, shows it lacking some of the robot's own records: summaries get
+# them pushed. A teammate not heard that long is out of range; gossip reaches it later or never.
+SETTLE_SUMMARY_PERIODS = 3
 WINDOW_MARGIN_CELLS = 2                    # a region judged explored lies this far inside the window
 _OWN_TYPES = ("place", "gate", "claim")
 
@@ -120,6 +125,8 @@ class Pereira(Scheme):
         self._outbox: dict[tuple[int, int], tuple[str, Place | Gate | Claim]] = {}
         self._summary_turn = 0
         self._held_at_summary: dict[int, int] = {}          # what was held when this robot last summarised
+        # teammate -> (upto of this robot's records its last summary gave, when heard)
+        self._mine_held_by: dict[int, tuple[int, int]] = {}
         self._left_labels: set[int | None] = set()           # regions of waypoints left to the team this cycle
         self._outbox_us = self._news_until_us = 0
         self._finished = False
@@ -211,6 +218,9 @@ class Pereira(Scheme):
             return
         if rtype == "summary":
             s = typed(rtype, values)
+            said = dict(s.entries)
+            if me in said or len(s.entries) < SUMMARY_SLOTS:    # a full summary may leave this robot out
+                self._mine_held_by[s.sender_id] = (said.get(me, 0), now_us)
             for name, record in self.holdings.to_push(s.sender_id, s.entries, self.s.params.pereira_push_max,
                                                       self._held_at_summary):
                 self._outbox.setdefault((record.sender_id, record.oseq), (name, record))
@@ -252,8 +262,15 @@ class Pereira(Scheme):
             room -= 1
 
     def has_news(self) -> bool:
-        """Own or pushed records waiting, or on the air until less than NEWS_READ_S ago."""
-        return self._outbox_us < self._news_until_us or bool(self._outbox)
+        """Own or pushed records waiting, on the air until less than NEWS_READ_S ago, or
+        lacking in the summary of a teammate still in range (SETTLE_SUMMARY_PERIODS): a
+        frame was lost, and the records go again, pushed, as its summaries show them lacking."""
+        if self._outbox_us < self._news_until_us or self._outbox:
+            return True
+        own = self.holdings.upto(self.s.robot_id)
+        in_range_us = SETTLE_SUMMARY_PERIODS * self.s.params.pereira_summary_period_s * 1e6
+        return any(upto < own and self._outbox_us - heard_us < in_range_us
+                   for upto, heard_us in self._mine_held_by.values())
 
     def wake_up(self, now_us: int) -> bool:
         """A teammate took back a claim: frontiers this robot left to it may be its again."""
