@@ -90,6 +90,12 @@ class ExplorationParams:
     # corners) with the faces where expected (LocalMap.layers); a retry after a recovery
     # takes no tolerance and the faces at the cells' centres.
     lethal_tolerance_m: float = _p(0.02, 'm', 0.0, 0.03, 'the body plus this must fit where a path goes')
+    # Ordinary plans also pass where the body plus lethal_tolerance_m fits only with the faces
+    # at their cells' centres (body_fit.OrdinaryFit), at this many times the cost: a door the
+    # raster shows barely wider than the body is a way on, taken where nothing wider is near.
+    tight_passage_cost: float = _p(10.0, '1', 0.0, 1e6,
+                                   "cost factor of passages the body fits only with walls at their cells' centres "
+                                   "(0: ordinary plans never take them)")
     inflation_radius_m: float = _p(1.0, 'm', 0.0, 50.0, 'paths pay extra closer than this to walls or unknown')
     inflation_cost_weight: float = _p(2.0, '1', 0.0, 1000.0, 'extra cost factor right at the body, decaying outwards')
     inflation_decay_per_m: float = _p(3.0, '1/m', 0.0, 100.0, "how fast that extra cost decays with distance")

@@ -3,9 +3,11 @@ frontiers found in all of it, and a robot about to stop going back to a frontier
 has left behind, along a way only the whole map shows."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
+import pytest
 
 from firmware import kernels
 from firmware.params import ExplorationParams
@@ -60,11 +62,11 @@ def test_the_whole_map_holds_the_window_over_the_paged_out_tiles():
     assert door.hidden_bit >= P.report_unreachable_bit
 
 
-def _corridor_with_a_deep_slot(slot_cells: int, niche: bool) -> LocalMap:
+def _corridor_with_a_deep_slot(slot_cells: int, niche: bool, params: ExplorationParams = P) -> LocalMap:
     """The corridor, closed at both ends, with a slot `slot_cells` cells wide and 1.2 m deep
     through its thick north wall (too deep to see through from the corridor), unknown beyond
     it or, with a niche, a free niche 1.2 m wide beyond it opening on unknown ground."""
-    local_map = LocalMap(P, 0.0, 0.0)
+    local_map = LocalMap(params, 0.0, 0.0)
     _corridor(local_map, -5.0, 5.0)
     _paint(local_map, -5.2, -5.0, -1.3, 1.3, WALL_LOGODDS)
     _paint(local_map, 5.0, 5.2, -1.3, 1.3, WALL_LOGODDS)
@@ -77,12 +79,35 @@ def _corridor_with_a_deep_slot(slot_cells: int, niche: bool) -> LocalMap:
 
 
 def test_a_frontier_behind_a_gap_narrower_than_the_body_is_found_but_not_reached():
-    # A slot 0.5 m wide (the body's width): the robot can neither pass it nor look through it.
-    known = KnownMap(P, _corridor_with_a_deep_slot(slot_cells=5, niche=False))
+    # A slot of 4 free cells: 0.4 m between the expected wall faces, 0.5 m between the wall
+    # cells' centres, narrower than the body (0.5 m) even so. The robot can neither pass it
+    # nor look through it into the niche beyond.
+    known = KnownMap(P, _corridor_with_a_deep_slot(slot_cells=4, niche=True))
     known.refresh(0.0, 0.0, 0)
     left = known.frontiers()
     assert not left.reachable and len(left.unreachable) == 1
     assert left.unreachable[0].stand_xy is None
+
+
+@pytest.mark.parametrize("passage_cost, passes", [(10.0, True), (0.0, False)])
+def test_a_slot_the_body_fits_only_between_the_wall_cells_centres_is_a_tight_passage(passage_cost, passes):
+    # 5 free cells: 0.5 m between the expected faces (the body's width, no room for the
+    # tolerance), 0.6 m between the wall cells' centres: a tight passage, unless turned off.
+    params = dataclasses.replace(P, tight_passage_cost=passage_cost)
+    local_map = _corridor_with_a_deep_slot(slot_cells=5, niche=False, params=params)
+    known = KnownMap(params, local_map)
+    known.refresh(0.0, 0.0, 0)
+    left = known.frontiers()
+    assert (len(left.reachable), len(left.unreachable)) == ((1, 0) if passes else (0, 1))
+    layers = local_map.layers()
+    i, j = local_map.cell_of(0.2, 1.6)                      # in the slot, on its middle line
+    assert layers.traversable[i, j] == passes
+    assert local_map.narrow_at(0.25, 1.65) == passes
+    assert not local_map.narrow_at(0.0, 0.0)                # the corridor's middle is no passage
+    if passes:
+        assert layers.cell_cost[i, j] >= passage_cost       # taken only where nothing wider is near
+        route, cost_m = known.route(0.25, 2.2)
+        assert cost_m > 3.0 * math.hypot(0.25, 2.2)
 
 
 def test_the_window_alone_finds_no_frontier_once_the_door_is_paged_out():

@@ -56,14 +56,14 @@ def inflation(spare_m: np.ndarray, reach_m: float, decay_per_m: float) -> np.nda
 
 
 class BodyFit:
-    """The Fit of a window, for one body geometry (tight: no lethal tolerance and the wall
-    faces at the occupied cells' centres, the most room there can be)."""
+    """The Fit of a window, for one body geometry (tight: the wall faces at the occupied
+    cells' centres, the most room there can be, and no lethal tolerance unless kept)."""
 
-    def __init__(self, params: ExplorationParams, tight: bool) -> None:
+    def __init__(self, params: ExplorationParams, tight: bool, keep_tolerance: bool = False) -> None:
         p = self.p = params
         self.tight = tight
         res = p.resolution_m
-        self.body_m = p.robot_radius_m + (0.0 if tight else p.lethal_tolerance_m)
+        self.body_m = p.robot_radius_m + (0.0 if tight and not keep_tolerance else p.lethal_tolerance_m)
         self.body_cells = self.body_m / res
         h = EXPECTED_FACE_HALF_SIDE_CELLS
         self.sure_cells = _CHAMFER_LONG * (self.body_cells + h * math.sqrt(2.0)) + 1.0
@@ -228,3 +228,31 @@ class BodyFit:
             standing[band] = best
             clearance_cells[band] = room - (h - face)
         return traversable, (clearance_cells * res).astype(np.float32), standing
+
+
+class OrdinaryFit:
+    """The layers of ordinary plans: where the body fits with the wall faces where expected
+    and, at tight_passage_cost times the cost, the tight passages: cells where it fits only
+    with the faces at their cells' centres (the tolerance kept). A door the raster shows
+    five free cells wide is such a passage for a body of 0.5 m: about 0.6 m between the
+    jambs' centres, 0.5 m between their expected faces. Paths take one where no way of
+    comparable cost goes round it; the follower slows down there (little room)."""
+
+    def __init__(self, params: ExplorationParams) -> None:
+        self.passage_cost = params.tight_passage_cost
+        self.normal = BodyFit(params, tight=False)
+        self.passage = BodyFit(params, tight=True, keep_tolerance=True) if self.passage_cost > 0 else None
+
+    def update(self, state: np.ndarray, row0: int, col0: int) -> tuple[Fit, np.ndarray]:
+        """(the Fit, fresh arrays; which of its traversable cells are tight passages)."""
+        normal = self.normal.update(state, row0, col0)
+        fit = Fit(*(a.copy() for a in normal))
+        if self.passage is None:
+            return fit, np.zeros(state.shape, bool)
+        passage = self.passage.update(state, row0, col0)
+        narrow = passage.traversable & ~normal.traversable
+        fit.traversable[narrow] = True
+        fit.clearance_m[narrow] = passage.clearance_m[narrow]
+        fit.standing[narrow] = passage.standing[narrow]
+        fit.cell_cost[narrow] = passage.cell_cost[narrow] * self.passage_cost
+        return fit, narrow

@@ -17,7 +17,7 @@ import numpy as np
 
 from firmware import kernels
 from firmware.params import ExplorationParams
-from firmware.services.body_fit import BodyFit
+from firmware.services.body_fit import BodyFit, Fit, OrdinaryFit
 
 
 class TilePager:
@@ -189,7 +189,11 @@ class LocalMap:
         self._last_passed: tuple[int, int] | None = None
         self._passed_cells = np.zeros((0, 2), np.int64)   # self.passed as an array, for layers()
         self._trail: list[tuple[float, float]] = []         # where the body's centre has been (mark_trail)
-        self._fits = {tight: BodyFit(params, tight) for tight in (False, True)}
+        self._ordinary_fit = OrdinaryFit(params)
+        self._tight_fit = BodyFit(params, tight=True)
+        # The tight passages of the last ordinary layers (OrdinaryFit) and their anchor.
+        self._narrow = np.zeros((0, 0), bool)
+        self._narrow_anchor = (0, 0)
         # What teammates told this robot about places it has not observed itself, set by a
         # scheme that shares maps. Planning sees it; the log-odds (this robot's own
         # observations) never do.
@@ -268,9 +272,16 @@ class LocalMap:
         """Where the body's centre has been (mark_trail), (n, 2) in metres."""
         return np.array(self._trail, np.float64).reshape(-1, 2)
 
+    def narrow_at(self, x_m: float, y_m: float) -> bool:
+        """Is this point on a tight passage of the last ordinary layers (OrdinaryFit)?"""
+        row = int(math.floor(y_m / self.p.resolution_m)) - self._narrow_anchor[0]
+        col = int(math.floor(x_m / self.p.resolution_m)) - self._narrow_anchor[1]
+        return 0 <= row < self._narrow.shape[0] and 0 <= col < self._narrow.shape[1] and bool(self._narrow[row, col])
+
     def mark_passed(self, x_m: float, y_m: float) -> None:
-        """The body's centre is here now, on a cell the map shows too narrow (a tight path
-        after a recovery): remember the cell, as a 4-connected chain with the last one
+        """The body's centre is here now, on a cell the map shows too narrow for ordinary
+        plans or a tight passage (a tight path after a recovery, or through a passage that
+        the map may later show narrower still): remember the cell, as a 4-connected chain with the last one
         marked, so that later plans may route through the same gap."""
         row = int(math.floor(y_m / self.p.resolution_m))
         col = int(math.floor(x_m / self.p.resolution_m))
@@ -335,19 +346,22 @@ class LocalMap:
         return kernels.classify(np.ascontiguousarray(self.logodds[i0:i1, j0:j1]), p.logodds_occupied, p.logodds_free)
 
     def layers(self, tight: bool = False) -> MapLayers:
-        """tight: a retry after a recovery, with no lethal tolerance and the wall faces at
-        their cells' centres (the most room there can be)."""
+        """Ordinary layers (OrdinaryFit: tight passages at a cost), or tight: a retry after a
+        recovery, with no lethal tolerance and the wall faces at their cells' centres (the
+        most room there can be)."""
         p = self.p
         state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
         self._mark_bumps(state, self.row0, self.col0)
         if self.team is not None:
             self.team.fill_unknown(state, self.row0, self.col0)
-        fit = self._fits[tight].update(state, self.row0, self.col0)
-        traversable = fit.traversable.copy()
-        self.open_passed(traversable, state, self.row0, self.col0)
-        return MapLayers(state=state, sight=close_wall_gaps(state), traversable=traversable,
-                         cell_cost=fit.cell_cost.copy(), clearance_m=fit.clearance_m.copy(),
-                         standing=fit.standing.copy())
+        if tight:
+            fit = Fit(*(a.copy() for a in self._tight_fit.update(state, self.row0, self.col0)))
+        else:
+            fit, self._narrow = self._ordinary_fit.update(state, self.row0, self.col0)
+            self._narrow_anchor = (self.row0, self.col0)
+        self.open_passed(fit.traversable, state, self.row0, self.col0)
+        return MapLayers(state=state, sight=close_wall_gaps(state), traversable=fit.traversable,
+                         cell_cost=fit.cell_cost, clearance_m=fit.clearance_m, standing=fit.standing)
 
     def whole_state(self, felt: bool = True) -> tuple[np.ndarray, int, int]:
         """The state (UNKNOWN / FREE / OCCUPIED, bumps as walls unless not felt) of
