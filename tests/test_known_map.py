@@ -275,3 +275,26 @@ def test_the_trail_keeps_a_point_a_metre():
     for x_m in np.arange(0.0, 3.05, 0.1):
         local_map.mark_trail(float(x_m), 0.0)
     assert np.allclose(local_map.trail(), [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]])
+
+
+@pytest.mark.parametrize("passage_cost", [10.0, 0.0])
+def test_an_ordinary_plan_takes_a_tight_passage_where_no_wider_way_goes(passage_cost):
+    """Beyond a slot of 5 free cells lies a niche opening on unknown ground. With tight
+    passages, once the robot stands at the slot's mouth, a waypoint in the niche is its
+    next target and the plan drives through the slot, slowly where it is narrow; without,
+    no ordinary plan leads there."""
+    params = dataclasses.replace(P, tight_passage_cost=passage_cost)
+    rig = PlannerRig(_corridor_with_a_deep_slot(slot_cells=5, niche=True, params=params), "independent",
+                     params=params)
+    first = rig.plan(0.0, 0.0, 1_000_000)
+    assert first.target is not None and first.target.y_m < 1.0        # the slot's mouth, to look up it
+    for now_us in (2_000_000, 3_000_000):
+        plan = rig.plan(first.target.x_m, first.target.y_m, now_us)
+    if passage_cost == 0.0:
+        assert plan.target is None or plan.target.y_m < 1.0
+        return
+    assert not plan.recover and plan.target is not None and plan.target.y_m > 2.3
+    assert plan.path_xy[-1, 1] > 2.3
+    in_slot = (plan.path_xy[:, 1] > 1.1) & (plan.path_xy[:, 1] < 2.2)
+    room_beside_body_m = plan.clearance_m[in_slot] - params.robot_radius_m
+    assert in_slot.any() and (room_beside_body_m < 0.05).all()      # the follower slows down there
