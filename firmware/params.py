@@ -87,11 +87,11 @@ class ExplorationParams:
     # the cell half a cell beyond each hit, so an occupied cell holds a wall face between its
     # centre and one cell nearer the robot, half a cell on average. A cell is lethal only if
     # the body plus lethal_tolerance_m fits at none of its points (centre, side midpoints,
-    # corners) with the faces where expected (LocalMap.layers); a retry after a recovery
-    # takes no tolerance and the faces at the cells' centres.
+    # corners) with the faces where expected, or, for tight passages, at the cells' centres
+    # (body_fit.PlanningFits).
     lethal_tolerance_m: float = _p(0.02, 'm', 0.0, 0.03, 'the body plus this must fit where a path goes')
     # Ordinary plans also pass where the body plus lethal_tolerance_m fits only with the faces
-    # at their cells' centres (body_fit.OrdinaryFit), at this many times the cost: a door the
+    # at their cells' centres (body_fit.PlanningFits), at this many times the cost: a door the
     # raster shows barely wider than the body is a way on, taken where nothing wider is near.
     tight_passage_cost: float = _p(10.0, '1', 0.0, 1e6,
                                    "cost factor of passages the body fits only with walls at their cells' centres "
@@ -114,8 +114,8 @@ class ExplorationParams:
     min_speed_mps: float = _p(0.1, 'm/s', 0.01, 10.0, 'the slowest the robot drives a path')
     # Recovery (services.recovery): before a target is struck or dropped, back off this far
     # if the LiDAR shows room behind, turn once on the spot at this rate, then retry on a
-    # tighter, slower path (no lethal tolerance, wall faces at their cells' centres,
-    # min_speed_mps) this long.
+    # tighter, slower path (wall faces at their cells' centres everywhere, tight passages at no
+    # extra cost, min_speed_mps) this long.
     recovery_back_off_m: float = _p(0.3, 'm', 0.0, 5.0, 'a recovery backs off this far if there is room behind')
     recovery_turn_radps: float = _p(0.8, 'rad/s', 0.05, 10.0, 'a recovery turns once on the spot at this rate')
     recovery_retry_s: float = _p(20.0, 's', 0.0, 3600.0, 'after a recovery, plans are tight and slow for this long')

@@ -126,22 +126,24 @@ def test_random_bytes_into_decode_keyframe_never_raise(data):
 
 
 def test_a_gap_the_body_drove_through_stays_open_to_later_plans():
-    """Walls 0.5 m apart read too narrow for the 0.5 m body (faces half a cell nearer than
-    the cells' centres); the cells the body's centre went through on a tight retry
-    (mark_passed, diagonal steps filled in) are traversable from then on, while free."""
+    """Wall cells whose centres lie 0.5 m apart read too narrow for the 0.5 m body even with
+    the faces at the centres (a tight passage needs the tolerance too); the cells the body's
+    centre went through (mark_passed, diagonal steps filled in) are traversable from then
+    on, while free."""
     p = ExplorationParams()
     local_map = LocalMap(p, 0.0, 0.0)
     i0, j0 = local_map.cell_of(0.0, 0.0)
     local_map.logodds[i0 - 10:i0 + 11, j0 - 10:j0 + 11] = p.logodds_min
-    local_map.logodds[i0 - 10:i0 + 11, j0 - 3] = p.logodds_max     # two walls along y, 6 cells apart
-    local_map.logodds[i0 - 10:i0 + 11, j0 + 3] = p.logodds_max
-    assert not local_map.layers().traversable[i0 - 5:i0 + 6, j0 - 2:j0 + 3].any()
+    local_map.logodds[i0 - 10:i0 + 11, j0 - 3] = p.logodds_max     # two walls along y, 5 cells apart
+    local_map.logodds[i0 - 10:i0 + 11, j0 + 2] = p.logodds_max
+    for tight in (False, True):
+        assert not local_map.layers(tight).traversable[i0 - 5:i0 + 6, j0 - 2:j0 + 2].any()
     for k in range(-5, 6):                                         # a slightly slanted drive through
-        local_map.mark_passed(0.05 + 0.1 * (k // 4), 0.05 + 0.1 * k)
+        local_map.mark_passed(-0.15 + 0.1 * ((k + 5) // 4), 0.05 + 0.1 * k)
     layers = local_map.layers()
     rows = range(i0 - 5, i0 + 6)
-    assert all(layers.traversable[i, j0 - 2:j0 + 3].any() for i in rows)
-    assert kernel_path_exists(layers.traversable, local_map.cell_of(-0.15, -0.45), local_map.cell_of(0.15, 0.55))
+    assert all(layers.traversable[i, j0 - 2:j0 + 2].any() for i in rows)
+    assert kernel_path_exists(layers.traversable, local_map.cell_of(-0.15, -0.45), local_map.cell_of(0.05, 0.55))
 
 
 def kernel_path_exists(traversable, a, b) -> bool:

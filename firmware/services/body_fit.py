@@ -56,14 +56,15 @@ def inflation(spare_m: np.ndarray, reach_m: float, decay_per_m: float) -> np.nda
 
 
 class BodyFit:
-    """The Fit of a window, for one body geometry (tight: the wall faces at the occupied
-    cells' centres, the most room there can be, and no lethal tolerance unless kept)."""
+    """The Fit of a window, for one body geometry: the body plus lethal_tolerance_m, with the
+    wall faces where expected or (tight) at the occupied cells' centres, the most room there
+    can be."""
 
-    def __init__(self, params: ExplorationParams, tight: bool, keep_tolerance: bool = False) -> None:
+    def __init__(self, params: ExplorationParams, tight: bool) -> None:
         p = self.p = params
         self.tight = tight
         res = p.resolution_m
-        self.body_m = p.robot_radius_m + (0.0 if tight and not keep_tolerance else p.lethal_tolerance_m)
+        self.body_m = p.robot_radius_m + p.lethal_tolerance_m
         self.body_cells = self.body_m / res
         h = EXPECTED_FACE_HALF_SIDE_CELLS
         self.sure_cells = _CHAMFER_LONG * (self.body_cells + h * math.sqrt(2.0)) + 1.0
@@ -230,29 +231,36 @@ class BodyFit:
         return traversable, (clearance_cells * res).astype(np.float32), standing
 
 
-class OrdinaryFit:
-    """The layers of ordinary plans: where the body fits with the wall faces where expected
-    and, at tight_passage_cost times the cost, the tight passages: cells where it fits only
-    with the faces at their cells' centres (the tolerance kept). A door the raster shows
-    five free cells wide is such a passage for a body of 0.5 m: about 0.6 m between the
-    jambs' centres, 0.5 m between their expected faces. Paths take one where no way of
-    comparable cost goes round it; the follower slows down there (little room)."""
+class PlanningFits:
+    """The layers plans take, from the two geometries kept up to date side by side.
+
+    Ordinary plans go where the body fits with the wall faces where expected and, at
+    tight_passage_cost times the cost, through the tight passages: cells where it fits only
+    with the faces at their cells' centres. A door the raster shows five free cells wide is
+    such a passage for a body of 0.5 m: about 0.6 m between the jambs' centres, 0.5 m between
+    their expected faces. Paths take one where no way of comparable cost goes round it; the
+    follower slows down there (little room). The retry after a recovery takes the tight
+    geometry alone, every passage at no extra cost."""
 
     def __init__(self, params: ExplorationParams) -> None:
         self.passage_cost = params.tight_passage_cost
-        self.normal = BodyFit(params, tight=False)
-        self.passage = BodyFit(params, tight=True, keep_tolerance=True) if self.passage_cost > 0 else None
+        self.expected = BodyFit(params, tight=False)
+        self.tight = BodyFit(params, tight=True)
 
-    def update(self, state: np.ndarray, row0: int, col0: int) -> tuple[Fit, np.ndarray]:
-        """(the Fit, fresh arrays; which of its traversable cells are tight passages)."""
-        normal = self.normal.update(state, row0, col0)
-        fit = Fit(*(a.copy() for a in normal))
-        if self.passage is None:
+    def ordinary(self, state: np.ndarray, row0: int, col0: int) -> tuple[Fit, np.ndarray]:
+        """(the ordinary Fit, fresh arrays; which of its traversable cells are tight passages)."""
+        expected = self.expected.update(state, row0, col0)
+        fit = Fit(*(a.copy() for a in expected))
+        if self.passage_cost <= 0.0:
             return fit, np.zeros(state.shape, bool)
-        passage = self.passage.update(state, row0, col0)
-        narrow = passage.traversable & ~normal.traversable
+        tight = self.tight.update(state, row0, col0)
+        narrow = tight.traversable & ~expected.traversable
         fit.traversable[narrow] = True
-        fit.clearance_m[narrow] = passage.clearance_m[narrow]
-        fit.standing[narrow] = passage.standing[narrow]
-        fit.cell_cost[narrow] = passage.cell_cost[narrow] * self.passage_cost
+        fit.clearance_m[narrow] = tight.clearance_m[narrow]
+        fit.standing[narrow] = tight.standing[narrow]
+        fit.cell_cost[narrow] = tight.cell_cost[narrow] * self.passage_cost
         return fit, narrow
+
+    def retry(self, state: np.ndarray, row0: int, col0: int) -> Fit:
+        """The tight Fit, fresh arrays."""
+        return Fit(*(a.copy() for a in self.tight.update(state, row0, col0)))

@@ -24,7 +24,7 @@ import scipy.ndimage as ndimage
 
 from firmware import kernels
 from firmware.params import ExplorationParams
-from firmware.services.body_fit import OrdinaryFit
+from firmware.services.body_fit import PlanningFits
 from firmware.services.grid_paths import extract_path, nearest_traversable
 from firmware.services.local_map import LocalMap, close_wall_gaps
 
@@ -176,7 +176,7 @@ class KnownMap:
                 and math.hypot(x_m - self._built_xy[0], y_m - self._built_xy[1]) < p.recenter_distance_m:
             return
         state, self.row0, self.col0 = self.local_map.whole_state(felt=self.felt)
-        fit, _narrow = OrdinaryFit(p).update(state, self.row0, self.col0)
+        fit, _narrow = PlanningFits(p).ordinary(state, self.row0, self.col0)
         traversable = fit.traversable
         self.local_map.open_passed(traversable, state, self.row0, self.col0)
         self.sight = close_wall_gaps(state)

@@ -17,7 +17,7 @@ import numpy as np
 
 from firmware import kernels
 from firmware.params import ExplorationParams
-from firmware.services.body_fit import BodyFit, Fit, OrdinaryFit
+from firmware.services.body_fit import PlanningFits
 
 
 class TilePager:
@@ -189,9 +189,8 @@ class LocalMap:
         self._last_passed: tuple[int, int] | None = None
         self._passed_cells = np.zeros((0, 2), np.int64)   # self.passed as an array, for layers()
         self._trail: list[tuple[float, float]] = []         # where the body's centre has been (mark_trail)
-        self._ordinary_fit = OrdinaryFit(params)
-        self._tight_fit = BodyFit(params, tight=True)
-        # The tight passages of the last ordinary layers (OrdinaryFit) and their anchor.
+        self._fits = PlanningFits(params)
+        # The tight passages of the last ordinary layers (PlanningFits) and their anchor.
         self._narrow = np.zeros((0, 0), bool)
         self._narrow_anchor = (0, 0)
         # What teammates told this robot about places it has not observed itself, set by a
@@ -273,7 +272,7 @@ class LocalMap:
         return np.array(self._trail, np.float64).reshape(-1, 2)
 
     def narrow_at(self, x_m: float, y_m: float) -> bool:
-        """Is this point on a tight passage of the last ordinary layers (OrdinaryFit)?"""
+        """Is this point on a tight passage of the last ordinary layers (PlanningFits)?"""
         row = int(math.floor(y_m / self.p.resolution_m)) - self._narrow_anchor[0]
         col = int(math.floor(x_m / self.p.resolution_m)) - self._narrow_anchor[1]
         return 0 <= row < self._narrow.shape[0] and 0 <= col < self._narrow.shape[1] and bool(self._narrow[row, col])
@@ -346,18 +345,18 @@ class LocalMap:
         return kernels.classify(np.ascontiguousarray(self.logodds[i0:i1, j0:j1]), p.logodds_occupied, p.logodds_free)
 
     def layers(self, tight: bool = False) -> MapLayers:
-        """Ordinary layers (OrdinaryFit: tight passages at a cost), or tight: a retry after a
-        recovery, with no lethal tolerance and the wall faces at their cells' centres (the
-        most room there can be)."""
+        """Ordinary layers (tight passages at a cost), or tight: a retry after a recovery,
+        with the wall faces at their cells' centres (the most room there can be) everywhere
+        (PlanningFits)."""
         p = self.p
         state = kernels.classify(self.logodds, p.logodds_occupied, p.logodds_free)
         self._mark_bumps(state, self.row0, self.col0)
         if self.team is not None:
             self.team.fill_unknown(state, self.row0, self.col0)
         if tight:
-            fit = Fit(*(a.copy() for a in self._tight_fit.update(state, self.row0, self.col0)))
+            fit = self._fits.retry(state, self.row0, self.col0)
         else:
-            fit, self._narrow = self._ordinary_fit.update(state, self.row0, self.col0)
+            fit, self._narrow = self._fits.ordinary(state, self.row0, self.col0)
             self._narrow_anchor = (self.row0, self.col0)
         self.open_passed(fit.traversable, state, self.row0, self.col0)
         return MapLayers(state=state, sight=close_wall_gaps(state), traversable=fit.traversable,

@@ -63,8 +63,8 @@ class Planner:
         self.known = KnownMap(params, local_map)
         self.known_unfelt = KnownMap(params, local_map, felt=False)   # for what is left at the end
         self._far_tried: dict[tuple[int, int], bool] = {}     # True: the scheme left it to a teammate
-        # Until then plans are tight (no lethal tolerance, faces at their cells' centres) and slow: the
-        # retry after a recovery (the agent sets it when one ends).
+        # Until then plans are tight (faces at their cells' centres, passages at no extra cost)
+        # and slow: the retry after a recovery (the agent sets it when one ends).
         self.tight_until_us = -1
         self._tried_tight: set[tuple[int, int]] = set()   # frontier cells (global) a tight retry was for
 
