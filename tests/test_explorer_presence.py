@@ -25,7 +25,7 @@ def _explorer(door: bool = True, params: ExplorationParams = P) -> PlannerRig:
     """Corridor y in [19, 21] m from x = 5 to 35 m, walls along both sides, unknown beyond
     x = 35 m (the open end) and north of a 1 m door at x in [20, 21] m (or, without the door,
     closed everywhere but at the open end)."""
-    local_map = LocalMap(P, 20.0, 20.0)
+    local_map = LocalMap(params, 20.0, 20.0)
     local_map.logodds[:] = 0.0
 
     def box(x0, x1, y0, y1, value):

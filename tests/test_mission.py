@@ -47,7 +47,7 @@ def test_trajectory_digest_for_a_fixed_seed_is_pinned():
     assert r.trajectory_sha256 == PINNED_TRAJECTORY_SHA256
 
 
-PINNED_TRAJECTORY_SHA256 = "bdb6aee29866bc8d4cd3d00520ea24470ce3af9baf89827d978a8563528e623e"
+PINNED_TRAJECTORY_SHA256 = "4275a4e5686c197e69901455224f468e876352d937cd2f8973b9013020696bad"
 
 
 def test_robots_in_frames_of_their_own_explore_as_well_without_knowing_the_others_frames():
@@ -56,7 +56,9 @@ def test_robots_in_frames_of_their_own_explore_as_well_without_knowing_the_other
     cfg = MissionConfig(map_spec="cave:2:40x40", robots=2, seed=4, max_sim_s=900, strategy="independent")
     shared, own = run_mission(cfg), run_mission(MissionConfig(**{**cfg.__dict__, "frames": "own"}))
     assert {a.pose.frame_id for a in own.agents} == {"robot0", "robot1"}
-    assert own.termination == shared.termination == "complete"
+    # Every robot stops by itself (one may know of a sliver of frontier it stood by and could
+    # not see into: a crack in the rock, counted as given up).
+    assert own.termination.startswith("complete") and shared.termination.startswith("complete")
     assert own.coverage >= 0.99 and shared.coverage >= 0.99 and own.robots_in_wall == 0
     with pytest.raises(ValueError, match="needs shared_frame"):
         run_mission(MissionConfig(**{**cfg.__dict__, "frames": "own", "strategy": "minpos"}))

@@ -65,8 +65,8 @@ def test_merged_teammates_count_in_planning(two_robots):
     for n, ag in enumerate(r.agents):
         j = 1 - n
         T = ag.scheme.frame_merges()[j]
-        moved = ag.scheme._team_xy[j]
         q = ag.scheme.teammate_vertex_xy(j)
+        moved = T.apply(q)
         h = np.column_stack([q, np.ones(len(q))])
         assert np.sqrt((((h @ truth[n][j].T)[:, :2] - moved) ** 2).sum(axis=1)).max() <= 1.0
         assert pair_error(T, truth[n][j], q)[0] <= 0.6

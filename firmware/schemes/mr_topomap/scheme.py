@@ -257,16 +257,22 @@ class MrTopoMap(Scheme):
         self.counts["grid_renders"] += 1
         return True
 
-    def _refresh_team(self) -> None:
-        """Merged teammates' vertices in the own frame (Algorithm 1's `others`, eq. (1))."""
-        self._team_xy, self._team_keys, places = {}, {}, []
+    def _team_in_own_frame(self) -> tuple[dict[int, np.ndarray], dict[int, list[tuple[int, int]]]]:
+        """Merged teammates' vertices as received so far, in the own frame, and their keys."""
+        xy, keys = {}, {}
         for j, T in sorted(self._merged.items()):
             vs = self.mergers[j].vertices
-            xy = T.apply(vs.xy) if len(vs) else np.zeros((0, 2))
-            self._team_xy[j] = xy
-            self._team_keys[j] = list(vs.keys)
-            places += [Place(v.owner, v.vid, float(p[0]), float(p[1]), v.desc) for v, p in zip(vs.vertices, xy)]
-        self._merged_places = places
+            xy[j] = T.apply(vs.xy) if len(vs) else np.zeros((0, 2))
+            keys[j] = list(vs.keys)
+        return xy, keys
+
+    def _refresh_team(self) -> None:
+        """Merged teammates' vertices in the own frame for planning until the next merge run
+        (Algorithm 1's `others`, eq. (1))."""
+        self._team_xy, self._team_keys = self._team_in_own_frame()
+        self._merged_places = [Place(v.owner, v.vid, float(p[0]), float(p[1]), v.desc)
+                               for j in self._team_xy
+                               for v, p in zip(self.mergers[j].vertices.vertices, self._team_xy[j])]
 
     # --- directions -------------------------------------------------------------------
     def _open_directions(self) -> list[Direction]:
@@ -504,9 +510,12 @@ class MrTopoMap(Scheme):
                 "open_directions": len(self.book.open_keys())}
 
     def drawables(self) -> dict:
+        """Own vertices and every merged teammate's received so far (also those heard since
+        the last merge run), in the own frame."""
         own = self._own_vertices()
-        xy = [own.xy] + [self._team_xy[j] for j in sorted(self._team_xy)]
-        keys = list(own.keys) + [k for j in sorted(self._team_keys) for k in self._team_keys[j]]
+        team_xy, team_keys = self._team_in_own_frame()
+        xy = [own.xy] + [team_xy[j] for j in sorted(team_xy)]
+        keys = list(own.keys) + [k for j in sorted(team_keys) for k in team_keys[j]]
         pts = np.vstack(xy) if keys else np.zeros((0, 2))
         where = {k: pts[n] for n, k in enumerate(keys)}
         segs = [(where[a], where[b]) for a, b in sorted(self.edges) if a in where and b in where]
