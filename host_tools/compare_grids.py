@@ -1,6 +1,7 @@
 """Compare two finished sweeps of the same maps, schemes and seeds that differ in something
 else (a parameter set with --set, or the code): per map and scheme, the median p_max of each,
-their ratio with the sweep's 90 % bootstrap interval, the lowest coverage and T_total / T_90.
+their ratio with the sweep's 90 % bootstrap interval, the lowest and the median coverage, the
+runs that reached 0.99 and T_total / T_90.
 
     python -m host_tools.compare_grids NEW_OUT OLD_OUT
 
@@ -14,7 +15,7 @@ import statistics
 import sys
 from pathlib import Path
 
-from host_tools.sweep import ratio_interval
+from host_tools.sweep import coverage_floor, ratio_interval
 
 
 class GridError(ValueError):
@@ -67,20 +68,27 @@ def compare(new: list[dict], old: list[dict]) -> list[dict]:
                      "interval": (lo, hi),
                      "coverage_min_new": min(t["coverage"] for t in x),
                      "coverage_min_old": min(t["coverage"] for t in y),
+                     "coverage_median_new": statistics.median(t["coverage"] for t in x),
+                     "coverage_median_old": statistics.median(t["coverage"] for t in y),
+                     "reached_new": sum(coverage_floor(t["coverage"]) >= 0.99 for t in x),
+                     "reached_old": sum(coverage_floor(t["coverage"]) >= 0.99 for t in y),
                      "tail_new": tail(x), "tail_old": tail(y)})
     return rows
 
 
 def markdown(rows: list[dict]) -> str:
     lines = ["| map | scheme | seeds | p_max new / old [m] | ratio (90 % interval) | lowest coverage new / old "
-             "| T_total / T_90 median new / old |",
-             "|---|---|---|---|---|---|---|"]
+             "| median coverage new / old | runs >= 0.99 new / old | T_total / T_90 median new / old |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         s = r["seeds"]
         seeds = f"{s[0]}-{s[-1]}" if s == list(range(s[0], s[-1] + 1)) else ",".join(map(str, s))
         lines.append(f"| {r['map']} | {r['scheme']} ({r['radio']}) | {seeds} | {r['p_max_new_m']:.1f} / "
                      f"{r['p_max_old_m']:.1f} | {r['ratio']:.2f} ({r['interval'][0]:.2f} to {r['interval'][1]:.2f}) | "
-                     f"{r['coverage_min_new']:.4f} / {r['coverage_min_old']:.4f} | "
+                     f"{coverage_floor(r['coverage_min_new']):.4f} / {coverage_floor(r['coverage_min_old']):.4f} | "
+                     f"{coverage_floor(r['coverage_median_new']):.4f} / "
+                     f"{coverage_floor(r['coverage_median_old']):.4f} | "
+                     f"{r['reached_new']} / {r['reached_old']} | "
                      f"{r['tail_new']:.1f} / {r['tail_old']:.1f} |")
     return "\n".join(lines) + "\n"
 

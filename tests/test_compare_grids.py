@@ -17,7 +17,7 @@ def _grid(tmp_path, name, trials):
 
 
 def test_the_ratio_is_of_the_medians_over_the_seeds_both_ran(tmp_path, capsys):
-    new = _grid(tmp_path, "new", [_trial(0, 200.0), _trial(1, 300.0, 0.995), _trial(2, 400.0), _trial(9, 10.0)])
+    new = _grid(tmp_path, "new", [_trial(0, 200.0), _trial(1, 300.0, 0.98996), _trial(2, 400.0), _trial(9, 10.0)])
     old = _grid(tmp_path, "old", [_trial(0, 400.0), _trial(1, 600.0), _trial(2, 800.0),
                                   _trial(0, 100.0, strategy="greedy")])
     assert main([str(new), str(old)]) == 0
@@ -25,7 +25,9 @@ def test_the_ratio_is_of_the_medians_over_the_seeds_both_ran(tmp_path, capsys):
     assert len(rows) == 1          # greedy is in one grid only; seed 9 in one only
     cells = [c.strip() for c in rows[0].split("|")]
     assert cells[3] == "0-2" and cells[4] == "300.0 / 600.0" and cells[5].startswith("0.50 (")
-    assert cells[6] == "0.9950 / 1.0000" and cells[7] == "2.0 / 2.0"
+    assert cells[6] == "0.9899 / 1.0000" and cells[7] == "1.0000 / 1.0000"     # rounded down
+    assert cells[8] == "2 / 3"                      # 0.98996 has not reached 0.99
+    assert cells[9] == "2.0 / 2.0"
 
 
 def test_a_broken_trials_file_is_named_with_its_line(tmp_path, capsys):
