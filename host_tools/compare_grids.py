@@ -61,7 +61,7 @@ def compare(new: list[dict], old: list[dict]) -> list[dict]:
         x = [a[key][s] for s in seeds]
         y = [b[key][s] for s in seeds]
         med = lambda ts: statistics.median(t["p_max_m"] for t in ts)  # noqa: E731
-        tail = lambda ts: statistics.median(t["t_total_s"] / t["t_90_s"] for t in ts if t["t_90_s"])  # noqa: E731
+        tail = lambda ts: _median_or_none([t["t_total_s"] / t["t_90_s"] for t in ts if t["t_90_s"]])  # noqa: E731
         lo, hi = ratio_interval([t["p_max_m"] for t in x], [t["p_max_m"] for t in y])
         rows.append({"map": key[0], "scheme": key[1], "radio": key[2], "seeds": seeds,
                      "p_max_new_m": med(x), "p_max_old_m": med(y), "ratio": med(x) / med(y),
@@ -74,6 +74,15 @@ def compare(new: list[dict], old: list[dict]) -> list[dict]:
                      "reached_old": sum(coverage_floor(t["coverage"]) >= 0.99 for t in y),
                      "tail_new": tail(x), "tail_old": tail(y)})
     return rows
+
+
+def _median_or_none(values: list[float]) -> float | None:
+    return statistics.median(values) if values else None
+
+
+def _tail(value: float | None) -> str:
+    """T_total / T_90, or "-" where no run reached 0.9."""
+    return "-" if value is None else f"{value:.1f}"
 
 
 def markdown(rows: list[dict]) -> str:
@@ -89,7 +98,7 @@ def markdown(rows: list[dict]) -> str:
                      f"{coverage_floor(r['coverage_median_new']):.4f} / "
                      f"{coverage_floor(r['coverage_median_old']):.4f} | "
                      f"{r['reached_new']} / {r['reached_old']} | "
-                     f"{r['tail_new']:.1f} / {r['tail_old']:.1f} |")
+                     f"{_tail(r['tail_new'])} / {_tail(r['tail_old'])} |")
     return "\n".join(lines) + "\n"
 
 

@@ -30,6 +30,15 @@ def test_the_ratio_is_of_the_medians_over_the_seeds_both_ran(tmp_path, capsys):
     assert cells[9] == "2.0 / 2.0"
 
 
+def test_a_scheme_with_no_run_reaching_0_9_has_no_tail(tmp_path, capsys):
+    slow = {**_trial(0, 100.0, 0.85), "t_90_s": None}
+    new = _grid(tmp_path, "new", [_trial(0, 100.0)])
+    old = _grid(tmp_path, "old", [slow])
+    assert main([str(new), str(old)]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("| maze_a"))
+    assert [c.strip() for c in row.split("|")][9] == "2.0 / -"
+
+
 def test_a_broken_trials_file_is_named_with_its_line(tmp_path, capsys):
     new = _grid(tmp_path, "new", [_trial(0, 200.0)])
     old = tmp_path / "old"
