@@ -247,27 +247,33 @@ def test_the_map_without_felt_obstacles_opens_what_only_they_closed():
 
 
 
-def test_the_whole_map_tells_which_places_the_body_can_get_near():
+def test_the_whole_map_tells_which_places_the_body_is_cut_off_from():
     local_map = _corridor_with_a_deep_slot(slot_cells=3, niche=True)
     known = KnownMap(P, local_map)
     known.refresh(-3.0, 0.0, 0)
-    near = known.reaches_near(np.array([[2.0, 0.0], [0.1, 2.7], [0.1, 1.3], [500.0, 0.0]]), 0.8)
-    assert near.tolist() == [True, False, True, False]    # the corridor, the niche, the slot's mouth, off the map
+    points = [[2.0, 0.0], [0.1, 2.7], [0.1, 1.3], [3.0, 2.2], [500.0, 0.0]]
+    # The corridor, the niche (behind the slot), the slot's mouth, a point inside the rock
+    # beyond the corridor's wall (nowhere to stand near it), off the map.
+    assert known.cut_off(np.array(points), 0.8).tolist() == [False, True, False, False, False]
 
 
-def test_a_frontier_behind_a_narrow_gap_the_robot_has_driven_through_is_given_up():
+@pytest.mark.parametrize("trail, given_up", [
+    ([], False),
+    ([(0.1, 2.7), (0.1, 1.7), (0.1, 0.7)], True),     # from the niche, through the slot
+    ([(3.0, 2.2)], False),                            # a point the drifted map drew inside rock
+])
+def test_a_frontier_behind_a_narrow_gap_the_robot_has_driven_through_is_given_up(trail, given_up):
     # The robot's map shows the slot narrower than its body; alone, the niche's frontier is
     # behind a gap the body does not fit. Had the robot driven from the niche (its map since
-    # drifted), that gap is not known to be narrow: it gave the frontier up.
-    for came_from_the_niche in (False, True):
-        local_map = _corridor_with_a_deep_slot(slot_cells=3, niche=True)
-        if came_from_the_niche:
-            for y_m in (2.7, 1.7, 0.7):
-                local_map.mark_trail(0.1, y_m)
-        local_map.mark_trail(-3.0, 0.0)
-        left = _stop(PlannerRig(local_map, scheme="independent"), -3.0, 0.0)
-        assert len(left.given_up) == (1 if came_from_the_niche else 0)
-        assert len(left.behind_gaps) == (0 if came_from_the_niche else 1)
+    # drifted), that gap is not known to be narrow: it gave the frontier up. A trail point
+    # with nowhere to stand near it is no such sign.
+    local_map = _corridor_with_a_deep_slot(slot_cells=3, niche=True)
+    for x_m, y_m in trail:
+        local_map.mark_trail(x_m, y_m)
+    local_map.mark_trail(-3.0, 0.0)
+    left = _stop(PlannerRig(local_map, scheme="independent"), -3.0, 0.0)
+    assert len(left.given_up) == (1 if given_up else 0)
+    assert len(left.behind_gaps) == (0 if given_up else 1)
 
 
 def test_the_trail_keeps_a_point_a_metre():
@@ -298,3 +304,4 @@ def test_an_ordinary_plan_takes_a_tight_passage_where_no_wider_way_goes(passage_
     in_slot = (plan.path_xy[:, 1] > 1.1) & (plan.path_xy[:, 1] < 2.2)
     room_beside_body_m = plan.clearance_m[in_slot] - params.robot_radius_m
     assert in_slot.any() and (room_beside_body_m < 0.05).all()      # the follower slows down there
+

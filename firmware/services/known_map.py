@@ -164,6 +164,7 @@ class KnownMap:
         self._built_xy = (math.nan, math.nan)
         self.row0 = self.col0 = 0
         self.sight = np.zeros((0, 0), np.uint8)
+        self.traversable = np.zeros((0, 0), bool)
         self.reachable = np.zeros((0, 0), bool)
         self._dist = np.zeros((0, 0))
         self._parent = np.zeros((0, 0), np.int64)
@@ -189,19 +190,27 @@ class KnownMap:
         else:
             self._dist, self._parent = kernels.dijkstra_grid(traversable, fit.cell_cost, start[0], start[1])
         self.reachable = np.isfinite(self._dist)
+        self.traversable = traversable
         self._built_us, self._built_xy = now_us, (x_m, y_m)
 
-    def reaches_near(self, xy_m: np.ndarray, radius_m: float) -> np.ndarray:
-        """Per point (n, 2, metres): whether the body can get to a cell within radius_m of
-        it, as the map was last derived (False off the map)."""
+    def cut_off(self, xy_m: np.ndarray, radius_m: float) -> np.ndarray:
+        """Per point (n, 2, metres), as the map was last derived: the body could stand within
+        radius_m of it (a traversable cell there) but cannot get to any cell within radius_m
+        of it: the map has closed the way between. A point with nothing traversable near (a
+        wall drawn over it as the pose drifted) or off the map says nothing either way: False."""
         res = self.p.resolution_m
         rows = np.floor(xy_m[:, 1] / res).astype(np.int64) - self.row0
         cols = np.floor(xy_m[:, 0] / res).astype(np.int64) - self.col0
         inside = (rows >= 0) & (rows < self.reachable.shape[0]) & (cols >= 0) & (cols < self.reachable.shape[1])
         out = np.zeros(len(xy_m), bool)
-        if inside.any() and self.reachable.any():
-            cells_away = ndimage.distance_transform_edt(~self.reachable)
-            out[inside] = cells_away[rows[inside], cols[inside]] * res <= radius_m
+        if not inside.any() or not self.traversable.any():
+            return out
+        r, c = rows[inside], cols[inside]
+        near_traversable = ndimage.distance_transform_edt(~self.traversable)[r, c] * res <= radius_m
+        near_reachable = np.zeros(len(r), bool)
+        if self.reachable.any():
+            near_reachable = ndimage.distance_transform_edt(~self.reachable)[r, c] * res <= radius_m
+        out[inside] = near_traversable & ~near_reachable
         return out
 
     def cell_of(self, x_m: float, y_m: float) -> tuple[int, int]:

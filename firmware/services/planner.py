@@ -32,6 +32,7 @@ from firmware.services.topo_map import TopoMap
 from firmware.services.waypoints import WaypointSet
 
 PLACE_SNAP_CELLS = 3    # a topological place counts as reachable with a reachable cell this near
+MAX_REACHED_KEPT = 4096  # bounded memory for where targets were reached (the latest kept)
 
 
 @dataclass
@@ -67,6 +68,7 @@ class Planner:
         # and slow: the retry after a recovery (the agent sets it when one ends).
         self.tight_until_us = -1
         self._tried_tight: set[tuple[int, int]] = set()   # frontier cells (global) a tight retry was for
+        self._reached_xy: list[tuple[float, float]] = []   # where targets were reached (the latest)
 
     def _path(self, cells: list[tuple[int, int]], layers) -> tuple[np.ndarray, np.ndarray]:
         """World points through the cells, each at the cell's best point (its centre unless a
@@ -203,15 +205,27 @@ class Planner:
             self._far_tried[f.cell] = w not in self.waypoints.items
             if not self._far_tried[f.cell]:
                 return True
-        given_up = tuple(f for f in found.reachable if not self._left_to_team(f))
-        if found.unreachable and not self.known.reaches_near(self.map.trail(), self.p.escape_radius_m).all():
-            # The map no longer joins the robot to where it has driven: it has closed a way
+        left = [f for f in found.reachable if not self._left_to_team(f)]
+        # A frontier still there after the robot reached the place nearest it that its body
+        # can get to is seen only through a gap narrower than the body (a pocket in clutter,
+        # a crack in rock): no way on, as behind such a gap.
+        looked_at = tuple(f for f in left if self._reached_near(f.stand_xy))
+        given_up = tuple(f for f in left if f not in looked_at)
+        if found.unreachable and self.known.cut_off(self.map.trail(), self.p.escape_radius_m).any():
+            # The map no longer joins the robot to places it has driven: it has closed a way
             # the body took, so no gap it shows narrower than the body is known to be.
             suspect = found.unreachable
         else:
             suspect = self._behind_felt_obstacles(found.unreachable, x_m, y_m, now_us)
-        self.frontiers = FrontiersLeft(given_up + suspect, tuple(f for f in found.unreachable if f not in suspect))
+        self.frontiers = FrontiersLeft(given_up + suspect,
+                                       tuple(f for f in found.unreachable if f not in suspect) + looked_at)
         return False
+
+    def _reached_near(self, xy: tuple[float, float]) -> bool:
+        """Did the robot reach a target within ban_radius_m of this point? (The place nearest
+        a frontier shifts as the map around it fills in.)"""
+        r = self.p.ban_radius_m
+        return any(math.hypot(x - xy[0], y - xy[1]) <= r for x, y in self._reached_xy)
 
     def _behind_felt_obstacles(self, unreachable: tuple[Frontier, ...], x_m: float, y_m: float,
                                now_us: int) -> tuple[Frontier, ...]:
@@ -253,6 +267,9 @@ class Planner:
             c.cost_m = math.inf if local else c.graph_cost_m
 
     def _tell(self, target: Target | None, outcome: str) -> None:
+        if target is not None and outcome == "reached":
+            self._reached_xy.append((target.x_m, target.y_m))
+            del self._reached_xy[:-MAX_REACHED_KEPT]
         if target is not None:
             self.scheme.on_target_outcome(target, outcome)
 
@@ -349,8 +366,9 @@ class FrontiersLeft:
     """What a robot that stopped left behind, in all it had mapped: frontiers its body could
     get to but that it failed to (given_up: tried, and still there; or cut off only by
     obstacles it felt and did not see; or any it cannot reach while its map no longer joins
-    it to where it has driven), and frontiers behind gaps narrower than its body as mapped
-    (behind_gaps). Each hides at least report_unreachable_bit."""
+    it to places it has driven), and frontiers behind gaps narrower than its body as mapped
+    or seen only through one (behind_gaps: still there after the robot reached the place
+    nearest them its body can get to). Each hides at least report_unreachable_bit."""
     given_up: tuple[Frontier, ...] = ()
     behind_gaps: tuple[Frontier, ...] = ()
 
