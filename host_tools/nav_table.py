@@ -1,0 +1,101 @@
+"""How a finished sweep's robots navigated, per map and scheme: coverage, how the missions
+ended, the tail (T_total / T_90), path, recoveries and ticks inside walls.
+
+    python -m host_tools.nav_table OUT [OUT ...]
+
+reads each OUT/trials.jsonl (as `lorascout sweep --out` writes it) and prints one Markdown
+table over all of them."""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+from collections import Counter
+from pathlib import Path
+
+from host_tools.compare_grids import GridError
+from host_tools.sweep import coverage_floor
+
+HEADER = ("| map | scheme | seeds | body-reachable area | coverage min / median | runs >= 0.99 | terminations "
+          "| T_90 median | T_total median | T_total / T_90 median | path median | recoveries median "
+          "| robot-ticks in walls |")
+
+
+def load(out: Path) -> list[dict]:
+    """The trials of one sweep, checked for the fields the table reads."""
+    path = out / "trials.jsonl"
+    if not path.is_file():
+        raise GridError(f"{path}: no such file (is {out} the --out of a finished lorascout sweep?)")
+    trials = []
+    for line_no, line in enumerate(path.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            t = json.loads(line)
+            trials.append({"map": str(t["map"]), "scheme": str(t["strategy"]), "seed": int(t["seed"]),
+                           "area_m2": float(t["reachable_area_m2"]), "coverage": float(t["coverage"]),
+                           "termination": str(t["termination"]), "t_total_s": float(t["t_total_s"]),
+                           "t_90_s": None if t["t_90_s"] is None else float(t["t_90_s"]),
+                           "path_m": max(float(x) for x in t["path_length_m"]),
+                           "recoveries": sum(int(x) for x in t["explorer_stats"]["recoveries"]),
+                           "in_wall": int(t["robots_in_wall"])})
+        except (ValueError, KeyError, TypeError) as e:
+            raise GridError(f"{path}, line {line_no}: not a sweep trial ({type(e).__name__}: {e})") from None
+    if not trials:
+        raise GridError(f"{path}: no trials")
+    return trials
+
+
+def _seeds(seeds: list[int]) -> str:
+    return f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else ",".join(map(str, seeds))
+
+
+def row(trials: list[dict]) -> str:
+    """One table row for the trials of one map and scheme."""
+    t0 = trials[0]
+    cov = [t["coverage"] for t in trials]
+    ends = Counter(t["termination"] for t in trials)
+    reached_90 = [t for t in trials if t["t_90_s"] is not None]
+    t90 = f"{statistics.median(t['t_90_s'] for t in reached_90):.0f} s ({len(reached_90)} of {len(trials)} reach 0.9)" \
+        if reached_90 else "- (none reach 0.9)"
+    tail = f"{statistics.median(t['t_total_s'] / t['t_90_s'] for t in reached_90):.1f}" if reached_90 else "-"
+    return (f"| {t0['map']} | {t0['scheme']} | {_seeds(sorted(t['seed'] for t in trials))} | {t0['area_m2']:.0f} m² "
+            f"| {coverage_floor(min(cov)):.4f} / {coverage_floor(statistics.median(cov)):.4f} "
+            f"| {sum(coverage_floor(c) >= 0.99 for c in cov)} of {len(trials)} "
+            f"| {', '.join(f'{k} {n}' for k, n in sorted(ends.items()))} | {t90} "
+            f"| {statistics.median(t['t_total_s'] for t in trials):.0f} s | {tail} "
+            f"| {statistics.median(t['path_m'] for t in trials):.0f} m "
+            f"| {statistics.median(t['recoveries'] for t in trials):g} | {sum(t['in_wall'] for t in trials)} |")
+
+
+def markdown(trials: list[dict]) -> str:
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for t in trials:
+        groups.setdefault((t["map"], t["scheme"]), []).append(t)
+    lines = [HEADER, "|" + "---|" * (HEADER.count("|") - 1)]
+    lines += [row(groups[key]) for key in sorted(groups)]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m host_tools.nav_table",
+                                 description="how a finished sweep's robots navigated, per map and scheme")
+    ap.add_argument("outs", type=Path, nargs="+", metavar="OUT", help="the --out of a finished sweep")
+    args = ap.parse_args(argv)
+    try:
+        trials = [t for out in args.outs for t in load(out)]
+        seen = Counter((t["map"], t["scheme"], t["seed"]) for t in trials)
+        twice = sorted(k for k, n in seen.items() if n > 1)
+        if twice:
+            raise GridError(f"{len(twice)} trials given twice, e.g. map {twice[0][0]}, scheme {twice[0][1]}, "
+                            f"seed {twice[0][2]}: give each trial once (one sweep per map and seed)")
+    except GridError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    sys.stdout.write(markdown(trials))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
