@@ -278,10 +278,10 @@ class LocalMap:
         return 0 <= row < self._narrow.shape[0] and 0 <= col < self._narrow.shape[1] and bool(self._narrow[row, col])
 
     def mark_passed(self, x_m: float, y_m: float) -> None:
-        """The body's centre is here now, on a cell the map shows too narrow for ordinary
-        plans or a tight passage (a tight path after a recovery, or through a passage that
-        the map may later show narrower still): remember the cell, as a 4-connected chain with the last one
-        marked, so that later plans may route through the same gap."""
+        """The body's centre is here now, on a tight passage or a cell the map shows too
+        narrow even for one (a tight path after a recovery; the map may later show a passage
+        narrower still): remember the cell, as a 4-connected chain with the last one marked,
+        so that later plans may route through the same gap."""
         row = int(math.floor(y_m / self.p.resolution_m))
         col = int(math.floor(x_m / self.p.resolution_m))
         last = self._last_passed
