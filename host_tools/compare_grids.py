@@ -13,6 +13,7 @@ import argparse
 import json
 import statistics
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from host_tools.sweep import coverage_floor, ratio_interval
@@ -22,7 +23,9 @@ class GridError(ValueError):
     """A trials file that cannot be compared, with what is wrong and where."""
 
 
-def load_trials(out: Path) -> list[dict]:
+def load_records(out: Path, fields: Callable[[dict], dict]) -> list[dict]:
+    """fields(trial) of every trial in OUT/trials.jsonl; a missing file, a trial lacking a
+    field or a malformed line is a GridError naming the file (and the line)."""
     path = out / "trials.jsonl"
     if not path.is_file():
         raise GridError(f"{path}: no such file (is {out} the --out of a finished lorascout sweep?)")
@@ -31,16 +34,23 @@ def load_trials(out: Path) -> list[dict]:
         if not line.strip():
             continue
         try:
-            t = json.loads(line)
-            trials.append({"map": str(t["map"]), "strategy": str(t["strategy"]), "radio": str(t["radio"]),
-                           "seed": int(t["seed"]), "p_max_m": max(float(x) for x in t["path_length_m"]),
-                           "coverage": float(t["coverage"]), "t_total_s": float(t["t_total_s"]),
-                           "t_90_s": None if t["t_90_s"] is None else float(t["t_90_s"])})
+            trials.append(fields(json.loads(line)))
         except (ValueError, KeyError, TypeError) as e:
             raise GridError(f"{path}, line {line_no}: not a sweep trial ({type(e).__name__}: {e})") from None
     if not trials:
         raise GridError(f"{path}: no trials")
     return trials
+
+
+def _ratio_fields(t: dict) -> dict:
+    return {"map": str(t["map"]), "strategy": str(t["strategy"]), "radio": str(t["radio"]),
+            "seed": int(t["seed"]), "p_max_m": max(float(x) for x in t["path_length_m"]),
+            "coverage": float(t["coverage"]), "t_total_s": float(t["t_total_s"]),
+            "t_90_s": None if t["t_90_s"] is None else float(t["t_90_s"])}
+
+
+def load_trials(out: Path) -> list[dict]:
+    return load_records(out, _ratio_fields)
 
 
 def _groups(trials: list[dict]) -> dict[tuple[str, str, str], dict[int, dict]]:

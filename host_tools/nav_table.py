@@ -8,13 +8,12 @@ table over all of them."""
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 from collections import Counter
 from pathlib import Path
 
-from host_tools.compare_grids import GridError
+from host_tools.compare_grids import GridError, load_records
 from host_tools.sweep import coverage_floor
 
 HEADER = ("| map | scheme | seeds | body-reachable area | coverage min / median | runs >= 0.99 | terminations "
@@ -22,29 +21,19 @@ HEADER = ("| map | scheme | seeds | body-reachable area | coverage min / median 
           "| robot-ticks in walls |")
 
 
+def _nav_fields(t: dict) -> dict:
+    return {"map": str(t["map"]), "scheme": str(t["strategy"]), "seed": int(t["seed"]),
+            "area_m2": float(t["reachable_area_m2"]), "coverage": float(t["coverage"]),
+            "termination": str(t["termination"]), "t_total_s": float(t["t_total_s"]),
+            "t_90_s": None if t["t_90_s"] is None else float(t["t_90_s"]),
+            "path_m": max(float(x) for x in t["path_length_m"]),
+            "recoveries": sum(int(x) for x in t["explorer_stats"]["recoveries"]),
+            "in_wall": int(t["robots_in_wall"])}
+
+
 def load(out: Path) -> list[dict]:
     """The trials of one sweep, checked for the fields the table reads."""
-    path = out / "trials.jsonl"
-    if not path.is_file():
-        raise GridError(f"{path}: no such file (is {out} the --out of a finished lorascout sweep?)")
-    trials = []
-    for line_no, line in enumerate(path.read_text().splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            t = json.loads(line)
-            trials.append({"map": str(t["map"]), "scheme": str(t["strategy"]), "seed": int(t["seed"]),
-                           "area_m2": float(t["reachable_area_m2"]), "coverage": float(t["coverage"]),
-                           "termination": str(t["termination"]), "t_total_s": float(t["t_total_s"]),
-                           "t_90_s": None if t["t_90_s"] is None else float(t["t_90_s"]),
-                           "path_m": max(float(x) for x in t["path_length_m"]),
-                           "recoveries": sum(int(x) for x in t["explorer_stats"]["recoveries"]),
-                           "in_wall": int(t["robots_in_wall"])})
-        except (ValueError, KeyError, TypeError) as e:
-            raise GridError(f"{path}, line {line_no}: not a sweep trial ({type(e).__name__}: {e})") from None
-    if not trials:
-        raise GridError(f"{path}: no trials")
-    return trials
+    return load_records(out, _nav_fields)
 
 
 def _seeds(seeds: list[int]) -> str:

@@ -439,3 +439,12 @@ class RobotProcess:
         if self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait()
+
+
+def write_grid(folder, name: str, trials: list[dict]):
+    """A sweep's --out holding these trials as its trials.jsonl."""
+    import json
+    out = folder / name
+    out.mkdir()
+    (out / "trials.jsonl").write_text("".join(json.dumps(t) + "\n" for t in trials))
+    return out

@@ -2,6 +2,7 @@
 import json
 
 from host_tools.compare_grids import main
+from tests.doubles import write_grid
 
 
 def _trial(seed, p_max, coverage=1.0, strategy="minpos", map_name="maze_a.yaml"):
@@ -9,16 +10,9 @@ def _trial(seed, p_max, coverage=1.0, strategy="minpos", map_name="maze_a.yaml")
             "path_length_m": [p_max / 2, p_max], "coverage": coverage, "t_total_s": 600.0, "t_90_s": 300.0}
 
 
-def _grid(tmp_path, name, trials):
-    out = tmp_path / name
-    out.mkdir()
-    (out / "trials.jsonl").write_text("".join(json.dumps(t) + "\n" for t in trials))
-    return out
-
-
 def test_the_ratio_is_of_the_medians_over_the_seeds_both_ran(tmp_path, capsys):
-    new = _grid(tmp_path, "new", [_trial(0, 200.0), _trial(1, 300.0, 0.98996), _trial(2, 400.0), _trial(9, 10.0)])
-    old = _grid(tmp_path, "old", [_trial(0, 400.0), _trial(1, 600.0), _trial(2, 800.0),
+    new = write_grid(tmp_path, "new", [_trial(0, 200.0), _trial(1, 300.0, 0.98996), _trial(2, 400.0), _trial(9, 10.0)])
+    old = write_grid(tmp_path, "old", [_trial(0, 400.0), _trial(1, 600.0), _trial(2, 800.0),
                                   _trial(0, 100.0, strategy="greedy")])
     assert main([str(new), str(old)]) == 0
     rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| maze_a")]
@@ -32,15 +26,15 @@ def test_the_ratio_is_of_the_medians_over_the_seeds_both_ran(tmp_path, capsys):
 
 def test_a_scheme_with_no_run_reaching_0_9_has_no_tail(tmp_path, capsys):
     slow = {**_trial(0, 100.0, 0.85), "t_90_s": None}
-    new = _grid(tmp_path, "new", [_trial(0, 100.0)])
-    old = _grid(tmp_path, "old", [slow])
+    new = write_grid(tmp_path, "new", [_trial(0, 100.0)])
+    old = write_grid(tmp_path, "old", [slow])
     assert main([str(new), str(old)]) == 0
     row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("| maze_a"))
     assert [c.strip() for c in row.split("|")][9] == "2.0 / -"
 
 
 def test_a_broken_trials_file_is_named_with_its_line(tmp_path, capsys):
-    new = _grid(tmp_path, "new", [_trial(0, 200.0)])
+    new = write_grid(tmp_path, "new", [_trial(0, 200.0)])
     old = tmp_path / "old"
     old.mkdir()
     (old / "trials.jsonl").write_text(json.dumps(_trial(0, 1.0)) + "\n{\"map\": \"x\"}\n")
@@ -50,9 +44,9 @@ def test_a_broken_trials_file_is_named_with_its_line(tmp_path, capsys):
 
 
 def test_a_missing_grid_or_nothing_in_common_is_an_error(tmp_path, capsys):
-    new = _grid(tmp_path, "new", [_trial(0, 200.0)])
+    new = write_grid(tmp_path, "new", [_trial(0, 200.0)])
     assert main([str(new), str(tmp_path / "nowhere")]) == 2
     assert "no such file" in capsys.readouterr().err
-    other = _grid(tmp_path, "other", [_trial(0, 200.0, map_name="intel.yaml")])
+    other = write_grid(tmp_path, "other", [_trial(0, 200.0, map_name="intel.yaml")])
     assert main([str(new), str(other)]) == 2
     assert "share no map" in capsys.readouterr().err

@@ -2,6 +2,7 @@
 import json
 
 from host_tools.nav_table import main
+from tests.doubles import write_grid
 
 
 def _trial(seed, coverage, termination="complete", t_90_s=300.0, recoveries=2, in_wall=0):
@@ -10,16 +11,9 @@ def _trial(seed, coverage, termination="complete", t_90_s=300.0, recoveries=2, i
             "path_length_m": [500.0 + seed], "explorer_stats": {"recoveries": [recoveries]}, "robots_in_wall": in_wall}
 
 
-def _grid(tmp_path, name, trials):
-    out = tmp_path / name
-    out.mkdir()
-    (out / "trials.jsonl").write_text("".join(json.dumps(t) + "\n" for t in trials))
-    return out
-
-
 def test_one_row_per_map_and_scheme_over_every_sweep_given(tmp_path, capsys):
-    a = _grid(tmp_path, "a", [_trial(0, 0.9985), _trial(1, 0.98996, "complete_with_unreachable_frontiers", recoveries=4)])
-    b = _grid(tmp_path, "b", [_trial(2, 0.85, "time_limit", t_90_s=None, in_wall=3)])
+    a = write_grid(tmp_path, "a", [_trial(0, 0.9985), _trial(1, 0.98996, "complete_with_unreachable_frontiers", recoveries=4)])
+    b = write_grid(tmp_path, "b", [_trial(2, 0.85, "time_limit", t_90_s=None, in_wall=3)])
     assert main([str(a), str(b)]) == 0
     rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| intel")]
     assert len(rows) == 1
@@ -35,14 +29,14 @@ def test_one_row_per_map_and_scheme_over_every_sweep_given(tmp_path, capsys):
 def test_a_broken_or_missing_trials_file_is_named(tmp_path, capsys):
     assert main([str(tmp_path / "nowhere")]) == 2
     assert "no such file" in capsys.readouterr().err
-    bad = _grid(tmp_path, "bad", [_trial(0, 1.0)])
+    bad = write_grid(tmp_path, "bad", [_trial(0, 1.0)])
     (bad / "trials.jsonl").write_text(json.dumps(_trial(0, 1.0)) + '\n{"map": "x"}\n')
     assert main([str(bad)]) == 2
     assert "trials.jsonl, line 2" in capsys.readouterr().err
 
 
 def test_the_same_trial_in_two_sweeps_is_refused(tmp_path, capsys):
-    a = _grid(tmp_path, "a", [_trial(0, 1.0)])
-    b = _grid(tmp_path, "b", [_trial(0, 0.9)])
+    a = write_grid(tmp_path, "a", [_trial(0, 1.0)])
+    b = write_grid(tmp_path, "b", [_trial(0, 0.9)])
     assert main([str(a), str(b)]) == 2
     assert "seed 0" in capsys.readouterr().err
