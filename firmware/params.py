@@ -275,7 +275,8 @@ def check_param(name: str, value) -> None:
 
 def check_params(p: "ExplorationParams") -> None:
     """Every parameter within its range, and the relations between them: the local map's
-    window at most MAX_WINDOW_CELLS a side, the log-odds thresholds between the clamps.
+    window at most MAX_WINDOW_CELLS a side, the log-odds thresholds between the clamps, a
+    tight passage's cost factor 0 or at least 1.
     Raises ParamError naming the parameters, their values and what must hold."""
     for f in fields(p):
         check_param(f.name, getattr(p, f.name))
@@ -288,6 +289,9 @@ def check_params(p: "ExplorationParams") -> None:
     if p.recenter_distance_m >= p.d_local_m:
         raise ParamError(f"recenter_distance_m = {p.recenter_distance_m:g} must be below d_local_m = "
                          f"{p.d_local_m:g} (the window moves before the robot leaves it)")
+    if 0.0 < p.tight_passage_cost < 1.0:
+        raise ParamError(f"tight_passage_cost = {p.tight_passage_cost:g} must be 0 (no tight passages in ordinary "
+                         "plans) or at least 1 (a passage never costs less than open floor)")
     chain = [("logodds_min", p.logodds_min), ("logodds_free", p.logodds_free),
              ("logodds_occupied", p.logodds_occupied), ("logodds_max", p.logodds_max)]
     for (a, va), (b, vb) in zip(chain, chain[1:]):

@@ -93,6 +93,7 @@ def test_reports_from_before_overrides_existed_count_as_the_defaults():
     (["logodds_min=-1", "logodds_free=-2"], "logodds_min = -1 must be below logodds_free = -2"),
     (["resolution_m=0.02", "d_local_m=100"], "window of 10000 x 10000 cells"),
     (["recenter_distance_m=30"], "recenter_distance_m = 30 must be below d_local_m = 20"),
+    (["tight_passage_cost=0.5"], "tight_passage_cost = 0.5 must be 0 (no tight passages in ordinary plans) or at least 1"),
 ])
 def test_parameters_are_checked_together_against_their_relations(items, says):
     with pytest.raises(ValueError, match="--set ") as err:
