@@ -16,7 +16,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from host_tools.sweep import coverage_floor, ratio_interval
+from host_tools.sweep import COVERAGE_TARGET, coverage_floor, ratio_interval
 
 
 class GridError(ValueError):
@@ -80,10 +80,19 @@ def compare(new: list[dict], old: list[dict]) -> list[dict]:
                      "coverage_min_old": min(t["coverage"] for t in y),
                      "coverage_median_new": statistics.median(t["coverage"] for t in x),
                      "coverage_median_old": statistics.median(t["coverage"] for t in y),
-                     "reached_new": sum(coverage_floor(t["coverage"]) >= 0.99 for t in x),
-                     "reached_old": sum(coverage_floor(t["coverage"]) >= 0.99 for t in y),
+                     "reached_new": runs_on_target(x), "reached_old": runs_on_target(y),
                      "tail_new": tail(x), "tail_old": tail(y)})
     return rows
+
+
+def runs_on_target(trials: list[dict]) -> int:
+    """How many trials covered COVERAGE_TARGET (their coverage rounded down, as tabulated)."""
+    return sum(coverage_floor(t["coverage"]) >= COVERAGE_TARGET for t in trials)
+
+
+def seed_range(seeds: list[int]) -> str:
+    """Sorted seeds as "0-9" when consecutive, else listed."""
+    return f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else ",".join(map(str, seeds))
 
 
 def _median_or_none(values: list[float]) -> float | None:
@@ -100,8 +109,7 @@ def markdown(rows: list[dict]) -> str:
              "| median coverage new / old | runs >= 0.99 new / old | T_total / T_90 median new / old |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        s = r["seeds"]
-        seeds = f"{s[0]}-{s[-1]}" if s == list(range(s[0], s[-1] + 1)) else ",".join(map(str, s))
+        seeds = seed_range(r["seeds"])
         lines.append(f"| {r['map']} | {r['scheme']} ({r['radio']}) | {seeds} | {r['p_max_new_m']:.1f} / "
                      f"{r['p_max_old_m']:.1f} | {r['ratio']:.2f} ({r['interval'][0]:.2f} to {r['interval'][1]:.2f}) | "
                      f"{coverage_floor(r['coverage_min_new']):.4f} / {coverage_floor(r['coverage_min_old']):.4f} | "

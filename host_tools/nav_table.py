@@ -13,7 +13,7 @@ import sys
 from collections import Counter
 from pathlib import Path
 
-from host_tools.compare_grids import GridError, load_records
+from host_tools.compare_grids import GridError, load_records, runs_on_target, seed_range
 from host_tools.sweep import coverage_floor
 
 HEADER = ("| map | scheme | seeds | body-reachable area | coverage min / median | runs >= 0.99 | terminations "
@@ -36,10 +36,6 @@ def load(out: Path) -> list[dict]:
     return load_records(out, _nav_fields)
 
 
-def _seeds(seeds: list[int]) -> str:
-    return f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else ",".join(map(str, seeds))
-
-
 def row(trials: list[dict]) -> str:
     """One table row for the trials of one map and scheme."""
     t0 = trials[0]
@@ -49,9 +45,9 @@ def row(trials: list[dict]) -> str:
     t90 = f"{statistics.median(t['t_90_s'] for t in reached_90):.0f} s ({len(reached_90)} of {len(trials)} reach 0.9)" \
         if reached_90 else "- (none reach 0.9)"
     tail = f"{statistics.median(t['t_total_s'] / t['t_90_s'] for t in reached_90):.1f}" if reached_90 else "-"
-    return (f"| {t0['map']} | {t0['scheme']} | {_seeds(sorted(t['seed'] for t in trials))} | {t0['area_m2']:.0f} m² "
+    return (f"| {t0['map']} | {t0['scheme']} | {seed_range(sorted(t['seed'] for t in trials))} | {t0['area_m2']:.0f} m² "
             f"| {coverage_floor(min(cov)):.4f} / {coverage_floor(statistics.median(cov)):.4f} "
-            f"| {sum(coverage_floor(c) >= 0.99 for c in cov)} of {len(trials)} "
+            f"| {runs_on_target(trials)} of {len(trials)} "
             f"| {', '.join(f'{k} {n}' for k, n in sorted(ends.items()))} | {t90} "
             f"| {statistics.median(t['t_total_s'] for t in trials):.0f} s | {tail} "
             f"| {statistics.median(t['path_m'] for t in trials):.0f} m "
