@@ -276,6 +276,24 @@ def test_a_frontier_behind_a_narrow_gap_the_robot_has_driven_through_is_given_up
     assert len(left.behind_gaps) == (0 if given_up else 1)
 
 
+def test_a_way_closed_elsewhere_leaves_a_frontier_never_driven_to_behind_its_gap():
+    # The robot drove into a closed pocket south of the corridor through a slot its map now
+    # shows narrower than the body: its map has closed a way it took. The niche north of
+    # the corridor is in no part of the map the robot drove: its frontier stays behind the
+    # gap, not given up.
+    local_map = _corridor_with_a_deep_slot(slot_cells=3, niche=True)
+    _paint(local_map, -3.8, -2.2, -2.9, -1.0, WALL_LOGODDS)
+    _paint(local_map, -3.6, -2.4, -2.7, -1.3, FREE_LOGODDS)
+    _paint(local_map, -3.0, -2.8, -1.3, -1.0, FREE_LOGODDS)
+    for x_m, y_m in ((-3.0, -2.0), (-3.0, 0.0)):
+        local_map.mark_trail(x_m, y_m)
+    known = KnownMap(P, local_map)
+    known.refresh(-3.0, 0.0, 0)
+    assert known.cut_off(local_map.trail(), P.escape_radius_m).tolist() == [True, False]
+    left = _stop(PlannerRig(local_map, scheme="independent"), -3.0, 0.0)
+    assert not left.given_up and len(left.behind_gaps) == 1
+
+
 def test_the_trail_keeps_a_point_a_metre():
     local_map = LocalMap(P, 0.0, 0.0)
     for x_m in np.arange(0.0, 3.05, 0.1):

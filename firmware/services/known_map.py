@@ -240,3 +240,22 @@ class KnownMap:
         if not self.reachable.size:
             return Frontiers()
         return find_frontiers(self.sight, self.reachable, self.p, self.row0, self.col0)
+
+    def frontiers_from(self, xy_m: np.ndarray, radius_m: float) -> Frontiers:
+        """The frontiers of the whole map as if the robot stood at any of these points (n, 2,
+        metres): reachable are those the body could get to from a traversable cell within
+        radius_m of one. Grid paths never cut a corner, so the cells a path reaches from a
+        cell are its 4-connected traversable component."""
+        if not self.traversable.any() or not len(xy_m):
+            return Frontiers()
+        components, _n = ndimage.label(self.traversable)
+        res = self.p.resolution_m
+        rows = np.floor(xy_m[:, 1] / res).astype(np.int64) - self.row0
+        cols = np.floor(xy_m[:, 0] / res).astype(np.int64) - self.col0
+        inside = (rows >= 0) & (rows < components.shape[0]) & (cols >= 0) & (cols < components.shape[1])
+        _d, (near_i, near_j) = ndimage.distance_transform_edt(components == 0, return_indices=True)
+        r, c = near_i[rows[inside], cols[inside]], near_j[rows[inside], cols[inside]]
+        close = np.hypot(r - rows[inside], c - cols[inside]) * res <= radius_m
+        held = np.unique(components[r[close], c[close]])
+        reachable = np.isin(components, held[held > 0])
+        return find_frontiers(self.sight, reachable, self.p, self.row0, self.col0)

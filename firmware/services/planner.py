@@ -211,12 +211,9 @@ class Planner:
         # a crack in rock): no way on, as behind such a gap.
         looked_at = tuple(f for f in left if self._reached_near(f.stand_xy))
         given_up = tuple(f for f in left if f not in looked_at)
-        if found.unreachable and self.known.cut_off(self.map.trail(), self.p.escape_radius_m).any():
-            # The map no longer joins the robot to places it has driven: it has closed a way
-            # the body took, so no gap it shows narrower than the body is known to be.
-            suspect = found.unreachable
-        else:
-            suspect = self._behind_felt_obstacles(found.unreachable, x_m, y_m, now_us)
+        suspect = self._behind_closed_ways(found.unreachable) + \
+            self._behind_felt_obstacles(found.unreachable, x_m, y_m, now_us)
+        suspect = tuple(f for k, f in enumerate(suspect) if f not in suspect[:k])
         self.frontiers = FrontiersLeft(given_up + suspect,
                                        tuple(f for f in found.unreachable if f not in suspect) + looked_at)
         return False
@@ -226,6 +223,20 @@ class Planner:
         a frontier shifts as the map around it fills in.)"""
         r = self.p.ban_radius_m
         return any(math.hypot(x - xy[0], y - xy[1]) <= r for x, y in self._reached_xy)
+
+    def _behind_closed_ways(self, unreachable: tuple[Frontier, ...]) -> tuple[Frontier, ...]:
+        """Of the frontiers the body cannot reach, those it could from places it has driven
+        that the map no longer joins it to: the map has closed a way the body took, so no gap
+        it shows there narrower than the body is known to be. Frontiers in parts of the map
+        the robot never drove through stay behind their gaps."""
+        if not unreachable:
+            return ()
+        trail = self.map.trail()
+        cut = self.known.cut_off(trail, self.p.escape_radius_m)
+        if not cut.any():
+            return ()
+        beyond = {f.cell for f in self.known.frontiers_from(trail[cut], self.p.escape_radius_m).reachable}
+        return tuple(f for f in unreachable if f.cell in beyond)
 
     def _behind_felt_obstacles(self, unreachable: tuple[Frontier, ...], x_m: float, y_m: float,
                                now_us: int) -> tuple[Frontier, ...]:
@@ -365,8 +376,8 @@ class Planner:
 class FrontiersLeft:
     """What a robot that stopped left behind, in all it had mapped: frontiers its body could
     get to but that it failed to (given_up: tried, and still there; or cut off only by
-    obstacles it felt and did not see; or any it cannot reach while its map no longer joins
-    it to places it has driven), and frontiers behind gaps narrower than its body as mapped
+    obstacles it felt and did not see; or reached from places it has driven that its map no
+    longer joins it to), and frontiers behind gaps narrower than its body as mapped
     or seen only through one (behind_gaps: still there after the robot reached the place
     nearest them its body can get to). Each hides at least report_unreachable_bit."""
     given_up: tuple[Frontier, ...] = ()
