@@ -265,7 +265,7 @@ class ExplorerAgent:
             self._task_planning(now_us)
             if self.done:
                 return
-        if now_us < self.planner.tight_until_us or self.local_map.narrow_at(pose.x_m, pose.y_m):
+        if now_us < self.planner.tight_until_us or self.local_map.in_passage_at(pose.x_m, pose.y_m):
             self.local_map.mark_passed(pose.x_m, pose.y_m)
         if not self.follower.active and now_us - self._last_plan_us >= self.MIN_REPLAN_US:
             # The path ran out before the next planning slot: plan now instead of idling.

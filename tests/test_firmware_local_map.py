@@ -146,6 +146,37 @@ def test_a_gap_the_body_drove_through_stays_open_to_later_plans():
     assert kernel_path_exists(layers.traversable, local_map.cell_of(-0.15, -0.45), local_map.cell_of(0.05, 0.55))
 
 
+def test_a_door_the_body_drove_through_stays_open_when_later_scans_draw_it_narrower():
+    """A door 0.8 m between the wall cells' centres fits the body with room to spare, but
+    less than slow_clearance_m beside it: a passage, so the cells driven through it are
+    remembered. When later scans draw the door 0.5 m wide, too narrow even for a tight
+    passage, plans still go through where the body went."""
+    p = ExplorationParams()
+    local_map = LocalMap(p, 0.0, 0.0)
+    i0, j0 = local_map.cell_of(0.0, 0.0)
+    local_map.logodds[i0 - 10:i0 + 11, j0 - 10:j0 + 11] = p.logodds_min
+    local_map.logodds[i0 - 10:i0 + 11, j0 - 4] = p.logodds_max     # two walls along y, 7 cells apart
+    local_map.logodds[i0 - 10:i0 + 11, j0 + 4] = p.logodds_max
+    assert local_map.layers().traversable[i0 - 5:i0 + 6, j0].all()
+    assert local_map.in_passage_at(0.05, 0.05)
+    for k in range(-9, 10):                                        # down the door's middle
+        x, y = 0.05, 0.05 + 0.1 * k
+        if local_map.in_passage_at(x, y):
+            local_map.mark_passed(x, y)
+    local_map.logodds[i0 - 10:i0 + 11, j0 - 3] = p.logodds_max     # the door as scans draw it later
+    local_map.logodds[i0 - 10:i0 + 11, j0 + 2] = p.logodds_max
+    for tight in (False, True):
+        assert not _the_same_map_never_driven(p, local_map).layers(tight).traversable[i0 - 5:i0 + 6, j0].any()
+    assert kernel_path_exists(local_map.layers().traversable, (i0 - 8, j0), (i0 + 8, j0))
+
+
+def _the_same_map_never_driven(p: ExplorationParams, local_map: LocalMap) -> LocalMap:
+    """A map with the same log-odds and no cells driven through."""
+    other = LocalMap(p, 0.0, 0.0)
+    other.logodds[:] = local_map.logodds
+    return other
+
+
 def kernel_path_exists(traversable, a, b) -> bool:
     from firmware import kernels
     return bool(kernels.reachable_cells(traversable, a[0], a[1])[b])

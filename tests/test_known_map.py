@@ -102,8 +102,8 @@ def test_a_slot_the_body_fits_only_between_the_wall_cells_centres_is_a_tight_pas
     layers = local_map.layers()
     i, j = local_map.cell_of(0.2, 1.6)                      # in the slot, on its middle line
     assert layers.traversable[i, j] == passes
-    assert local_map.narrow_at(0.25, 1.65) == passes
-    assert not local_map.narrow_at(0.0, 0.0)                # the corridor's middle is no passage
+    assert local_map.in_passage_at(0.25, 1.65) == passes
+    assert not local_map.in_passage_at(0.0, 0.0)            # the corridor's middle is no passage
     if passes:
         assert layers.cell_cost[i, j] >= passage_cost       # taken only where nothing wider is near
         route, cost_m = known.route(0.25, 2.2)

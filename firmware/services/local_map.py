@@ -155,7 +155,7 @@ def close_wall_gaps(state: np.ndarray) -> np.ndarray:
     return out
 
 
-# Bounded memory for mark_passed: 10 cells a metre, so 2 km of tight passages.
+# Bounded memory for mark_passed: 10 cells a metre, so 2 km of passages.
 MAX_PASSED_CELLS = 20_000
 # The trail (mark_trail): a point a metre, at most 20 km of them.
 TRAIL_SPACING_M = 1.0
@@ -190,9 +190,9 @@ class LocalMap:
         self._passed_cells = np.zeros((0, 2), np.int64)   # self.passed as an array, for layers()
         self._trail: list[tuple[float, float]] = []         # where the body's centre has been (mark_trail)
         self._fits = PlanningFits(params)
-        # The tight passages of the last ordinary layers (PlanningFits) and their anchor.
-        self._narrow = np.zeros((0, 0), bool)
-        self._narrow_anchor = (0, 0)
+        # The passages of the last ordinary layers (in_passage_at) and their anchor.
+        self._passages = np.zeros((0, 0), bool)
+        self._passages_anchor = (0, 0)
         # What teammates told this robot about places it has not observed itself, set by a
         # scheme that shares maps. Planning sees it; the log-odds (this robot's own
         # observations) never do.
@@ -271,17 +271,21 @@ class LocalMap:
         """Where the body's centre has been (mark_trail), (n, 2) in metres."""
         return np.array(self._trail, np.float64).reshape(-1, 2)
 
-    def narrow_at(self, x_m: float, y_m: float) -> bool:
-        """Is this point on a tight passage of the last ordinary layers (PlanningFits)?"""
-        row = int(math.floor(y_m / self.p.resolution_m)) - self._narrow_anchor[0]
-        col = int(math.floor(x_m / self.p.resolution_m)) - self._narrow_anchor[1]
-        return 0 <= row < self._narrow.shape[0] and 0 <= col < self._narrow.shape[1] and bool(self._narrow[row, col])
+    def in_passage_at(self, x_m: float, y_m: float) -> bool:
+        """Is this point on a passage of the last ordinary layers: a tight passage
+        (PlanningFits), or a cell that leaves the body less room than slow_clearance_m (a
+        door, a gap in clutter)? Later scans may draw such a gap narrower than the body, so
+        the cells driven through there are remembered (mark_passed)."""
+        row = int(math.floor(y_m / self.p.resolution_m)) - self._passages_anchor[0]
+        col = int(math.floor(x_m / self.p.resolution_m)) - self._passages_anchor[1]
+        return 0 <= row < self._passages.shape[0] and 0 <= col < self._passages.shape[1] \
+            and bool(self._passages[row, col])
 
     def mark_passed(self, x_m: float, y_m: float) -> None:
-        """The body's centre is here now, on a tight passage or a cell the map shows too
-        narrow even for one (a tight path after a recovery; the map may later show a passage
-        narrower still): remember the cell, as a 4-connected chain with the last one marked,
-        so that later plans may route through the same gap."""
+        """The body's centre is here now, on a passage (in_passage_at) or a cell the map shows
+        too narrow even for a tight one (a tight path after a recovery): remember the cell,
+        as a 4-connected chain with the last one marked, so that later plans may route
+        through the same gap."""
         row = int(math.floor(y_m / self.p.resolution_m))
         col = int(math.floor(x_m / self.p.resolution_m))
         last = self._last_passed
@@ -356,8 +360,10 @@ class LocalMap:
         if tight:
             fit = self._fits.retry(state, self.row0, self.col0)
         else:
-            fit, self._narrow = self._fits.ordinary(state, self.row0, self.col0)
-            self._narrow_anchor = (self.row0, self.col0)
+            fit, narrow = self._fits.ordinary(state, self.row0, self.col0)
+            short_of_room = fit.clearance_m - p.robot_radius_m < p.slow_clearance_m
+            self._passages = narrow | (fit.traversable & short_of_room)
+            self._passages_anchor = (self.row0, self.col0)
         self.open_passed(fit.traversable, state, self.row0, self.col0)
         return MapLayers(state=state, sight=close_wall_gaps(state), traversable=fit.traversable,
                          cell_cost=fit.cell_cost, clearance_m=fit.clearance_m, standing=fit.standing)
