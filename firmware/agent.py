@@ -167,14 +167,14 @@ class ExplorerAgent:
     def stats(self) -> dict[str, int]:
         """How this robot's targets ended, the frontiers it stopped short of (0 while it
         explores: those it gave up on, and those behind gaps narrower than its body), its
-        bumps, and the scheme's own counters."""
+        bumps, its drives back across ways its map closed, and the scheme's own counters."""
         c = self.targets.counts
         return {"targets_reached": c["reached"], "targets_seen_on_way": c["seen_on_way"],
                 "targets_unreachable": c["unreachable"], "targets_stalled": c["stalled"],
                 "unreachable_frontiers": len(self.planner.frontiers.given_up),
                 "narrow_gap_frontiers": len(self.planner.frontiers.behind_gaps),
                 **self.recovery.counts, **self.scheme.stats(), "bumps": self.bumps,
-                "stall_back_offs": self.stall_back_offs,
+                "stall_back_offs": self.stall_back_offs, "ways_back": self.planner.ways_back,
                 "scan_matches": self.localiser.matches, "scan_corrections": self.localiser.corrections}
 
     def pose_estimate(self) -> tuple[float, float, float] | None:

@@ -294,6 +294,34 @@ def test_a_way_closed_elsewhere_leaves_a_frontier_never_driven_to_behind_its_gap
     assert not left.given_up and len(left.behind_gaps) == 1
 
 
+def test_a_robot_whose_map_closed_the_way_it_came_drives_back_across_it_before_stopping():
+    # The robot came from the niche through the slot, which its map now shows narrower than
+    # the body. Before it gives the niche's frontier up it drives back the way it came, on
+    # a slow plan: to the last trail point it still reaches, then along the trail to the
+    # first one cut off. One try per closure, for a bounded time; then it stops.
+    local_map = _corridor_with_a_deep_slot(slot_cells=3, niche=True)
+    for x_m, y_m in ((0.1, 2.7), (0.1, 1.7), (0.1, 0.7), (-3.0, 0.0)):
+        local_map.mark_trail(x_m, y_m)
+    rig = PlannerRig(local_map, scheme="independent")
+    x_m, y_m = -3.0, 0.0
+    for period in range(1, 60):                        # as _stop does, until a way back
+        plan = rig.plan(x_m, y_m, period * 1_000_000)
+        assert not plan.done
+        if plan.recover:
+            rig.targets.recovery_started()
+            rig.planner.tight_until_us = period * 1_000_000 + int(P.recovery_retry_s * 1e6)
+        elif plan.target is None and len(plan.path_xy):
+            break
+        elif len(plan.path_xy):
+            x_m, y_m = plan.path_xy[-1]
+    assert plan.slow and rig.planner.ways_back == 1
+    assert np.allclose(plan.path_xy[-1], (0.1, 1.7))
+    assert np.hypot(plan.path_xy[0, 0] - x_m, plan.path_xy[0, 1] - y_m) < 0.2
+    assert np.max(np.hypot(*np.diff(plan.path_xy, axis=0).T)) <= P.resolution_m * 1.5
+    late = rig.plan(x_m, y_m, 3_600_000_000)            # the try's time is up: it stops
+    assert late.done and len(rig.planner.frontiers.given_up) == 1 and rig.planner.ways_back == 1
+
+
 def test_the_trail_keeps_a_point_a_metre():
     local_map = LocalMap(P, 0.0, 0.0)
     for x_m in np.arange(0.0, 3.05, 0.1):

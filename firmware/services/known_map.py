@@ -166,6 +166,7 @@ class KnownMap:
         self.sight = np.zeros((0, 0), np.uint8)
         self.traversable = np.zeros((0, 0), bool)
         self.reachable = np.zeros((0, 0), bool)
+        self._clearance_m = np.zeros((0, 0), np.float32)
         self._dist = np.zeros((0, 0))
         self._parent = np.zeros((0, 0), np.int64)
 
@@ -191,7 +192,23 @@ class KnownMap:
             self._dist, self._parent = kernels.dijkstra_grid(traversable, fit.cell_cost, start[0], start[1])
         self.reachable = np.isfinite(self._dist)
         self.traversable = traversable
+        self._clearance_m = fit.clearance_m
         self._built_us, self._built_xy = now_us, (x_m, y_m)
+
+    def built_xy(self) -> np.ndarray:
+        """Where the robot stood when the map was last derived (metres)."""
+        return np.array(self._built_xy, np.float64)
+
+    def clearance_at(self, xy_m: np.ndarray) -> np.ndarray:
+        """The room from each point (n, 2, metres) to the walls, as the map was last derived
+        (0 off the map)."""
+        res = self.p.resolution_m
+        rows = np.floor(xy_m[:, 1] / res).astype(np.int64) - self.row0
+        cols = np.floor(xy_m[:, 0] / res).astype(np.int64) - self.col0
+        inside = (rows >= 0) & (rows < self._clearance_m.shape[0]) & (cols >= 0) & (cols < self._clearance_m.shape[1])
+        out = np.zeros(len(xy_m))
+        out[inside] = self._clearance_m[rows[inside], cols[inside]]
+        return out
 
     def cut_off(self, xy_m: np.ndarray, radius_m: float) -> np.ndarray:
         """Per point (n, 2, metres), as the map was last derived: the body could stand within

@@ -69,6 +69,11 @@ class Planner:
         self.tight_until_us = -1
         self._tried_tight: set[tuple[int, int]] = set()   # frontier cells (global) a tight retry was for
         self._reached_xy: list[tuple[float, float]] = []   # where targets were reached (the latest)
+        # Driving back across a way the map has closed (_way_back): the trail point beyond
+        # the closure being tried and until when; where earlier tries went; how many.
+        self._way_back_try: tuple[tuple[float, float], int] | None = None
+        self._ways_back_tried: list[tuple[float, float]] = []
+        self.ways_back = 0
 
     def _path(self, cells: list[tuple[int, int]], layers) -> tuple[np.ndarray, np.ndarray]:
         """World points through the cells, each at the cell's best point (its centre unless a
@@ -171,6 +176,9 @@ class Planner:
             return Plan(None, np.zeros((0, 2)), False, recover=True)
         if self._head_for_far_frontier(view, x_m, y_m, now_us):
             return Plan(None, np.zeros((0, 2)), False)  # the next cycle heads there
+        way_back = self._way_back(x_m, y_m, now_us)
+        if way_back is not None:
+            return way_back
         return Plan(None, np.zeros((0, 2)), True)
 
     def _spare_hopeless_recoveries(self, start: tuple[int, int]) -> None:
@@ -237,6 +245,72 @@ class Planner:
             return ()
         beyond = {f.cell for f in self.known.frontiers_from(trail[cut], self.p.escape_radius_m).reachable}
         return tuple(f for f in unreachable if f.cell in beyond)
+
+    def _way_back(self, x_m: float, y_m: float, now_us: int) -> Plan | None:
+        """A robot about to stop whose map has closed a way it drove, with frontiers beyond
+        (_behind_closed_ways): before giving them up it drives back the way it came, from
+        where it stands through what it reaches to the last trail point it still reaches
+        before the closure, then along the trail across the closure to the first point cut
+        off, on tight, slow plans. The body went through there, so it fits; the map drew the
+        gap narrower later (a jamb seen from another side, a drifted pose, an obstacle felt).
+        Each closure gets one try, of at most the time the way takes at min_speed_mps plus
+        recovery_retry_s; None when none is left to try."""
+        p = self.p
+        trail = self.map.trail()
+        cut = self.known.cut_off(trail, p.escape_radius_m) if self.frontiers.given_up else np.zeros(len(trail), bool)
+        if self._way_back_try is not None:
+            beyond_xy, until_us = self._way_back_try
+            k = self._trail_index(trail, beyond_xy)
+            if now_us < until_us and k is not None and cut[k]:
+                return self._way_back_plan(trail, k, now_us, until_us)
+            self._way_back_try = None
+        if not self._behind_closed_ways(self.frontiers.given_up):
+            return None
+        spacing_m = 2.0 * p.escape_radius_m
+        fresh = [k for k in np.nonzero(cut)[0].tolist()
+                 if all(math.hypot(trail[k, 0] - tx, trail[k, 1] - ty) > spacing_m for tx, ty in self._ways_back_tried)]
+        if not fresh:
+            return None
+        k = max(fresh)                  # the most recent place beyond a closure
+        beyond_xy = (float(trail[k, 0]), float(trail[k, 1]))
+        self._ways_back_tried.append(beyond_xy)
+        self.ways_back += 1
+        return self._way_back_plan(trail, k, now_us, None)
+
+    @staticmethod
+    def _trail_index(trail: np.ndarray, xy: tuple[float, float]) -> int | None:
+        hit = np.nonzero((trail[:, 0] == xy[0]) & (trail[:, 1] == xy[1]))[0]
+        return int(hit[-1]) if len(hit) else None
+
+    def _way_back_plan(self, trail: np.ndarray, k: int, now_us: int, until_us: int | None) -> Plan:
+        """The way to trail[k] across the closure: the map's route to the first trail point
+        after k that it reaches (from where the robot stands when none does), then the trail
+        from there back to k, a point every cell."""
+        p = self.p
+        head_xy, head_room = np.zeros((0, 2)), np.zeros(0)
+        j = k + 1
+        while j < len(trail):
+            found = self.known.route(float(trail[j, 0]), float(trail[j, 1]))
+            if found is not None:
+                head_xy = found[0]
+                head_room = self.known.clearance_at(head_xy)
+                break
+            j += 1
+        start = head_xy[-1] if len(head_xy) else self.known.built_xy()
+        corners = np.vstack([start, trail[k:min(j, len(trail))][::-1]])
+        tail = [start.reshape(1, 2)]
+        for a, b in zip(corners[:-1], corners[1:]):
+            steps = max(int(math.ceil(math.hypot(*(b - a)) / p.resolution_m)), 1)
+            tail.append(a + (b - a) * (np.arange(1, steps + 1) / steps)[:, None])
+        tail_xy = np.vstack(tail)[1:]
+        path_xy = np.vstack([head_xy, tail_xy])
+        room = np.concatenate([head_room, np.zeros(len(tail_xy))])   # the closure: as close as it gets
+        if until_us is None:
+            length_m = float(np.sum(np.hypot(*np.diff(path_xy, axis=0).T))) if len(path_xy) > 1 else 0.0
+            until_us = now_us + int((length_m / p.min_speed_mps + p.recovery_retry_s) * 1e6)
+            self._way_back_try = ((float(trail[k, 0]), float(trail[k, 1])), until_us)
+        self.tight_until_us = max(self.tight_until_us, until_us)
+        return Plan(None, path_xy, False, room, slow=True)
 
     def _behind_felt_obstacles(self, unreachable: tuple[Frontier, ...], x_m: float, y_m: float,
                                now_us: int) -> tuple[Frontier, ...]:
