@@ -195,6 +195,14 @@ class KnownMap:
         self._clearance_m = fit.clearance_m
         self._built_us, self._built_xy = now_us, (x_m, y_m)
 
+    def _cells_of(self, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The map's (rows, cols) of points (n, 2, metres), and which lie on the map."""
+        res = self.p.resolution_m
+        rows = np.floor(xy_m[:, 1] / res).astype(np.int64) - self.row0
+        cols = np.floor(xy_m[:, 0] / res).astype(np.int64) - self.col0
+        n_rows, n_cols = self.traversable.shape
+        return rows, cols, (rows >= 0) & (rows < n_rows) & (cols >= 0) & (cols < n_cols)
+
     def built_xy(self) -> np.ndarray:
         """Where the robot stood when the map was last derived (metres)."""
         return np.array(self._built_xy, np.float64)
@@ -202,10 +210,7 @@ class KnownMap:
     def clearance_at(self, xy_m: np.ndarray) -> np.ndarray:
         """The room from each point (n, 2, metres) to the walls, as the map was last derived
         (0 off the map)."""
-        res = self.p.resolution_m
-        rows = np.floor(xy_m[:, 1] / res).astype(np.int64) - self.row0
-        cols = np.floor(xy_m[:, 0] / res).astype(np.int64) - self.col0
-        inside = (rows >= 0) & (rows < self._clearance_m.shape[0]) & (cols >= 0) & (cols < self._clearance_m.shape[1])
+        rows, cols, inside = self._cells_of(xy_m)
         out = np.zeros(len(xy_m))
         out[inside] = self._clearance_m[rows[inside], cols[inside]]
         return out
@@ -216,9 +221,7 @@ class KnownMap:
         of it: the map has closed the way between. A point with nothing traversable near (a
         wall drawn over it as the pose drifted) or off the map says nothing either way: False."""
         res = self.p.resolution_m
-        rows = np.floor(xy_m[:, 1] / res).astype(np.int64) - self.row0
-        cols = np.floor(xy_m[:, 0] / res).astype(np.int64) - self.col0
-        inside = (rows >= 0) & (rows < self.reachable.shape[0]) & (cols >= 0) & (cols < self.reachable.shape[1])
+        rows, cols, inside = self._cells_of(xy_m)
         out = np.zeros(len(xy_m), bool)
         if not inside.any() or not self.traversable.any():
             return out
@@ -267,9 +270,7 @@ class KnownMap:
             return Frontiers()
         components, _n = ndimage.label(self.traversable)
         res = self.p.resolution_m
-        rows = np.floor(xy_m[:, 1] / res).astype(np.int64) - self.row0
-        cols = np.floor(xy_m[:, 0] / res).astype(np.int64) - self.col0
-        inside = (rows >= 0) & (rows < components.shape[0]) & (cols >= 0) & (cols < components.shape[1])
+        rows, cols, inside = self._cells_of(xy_m)
         _d, (near_i, near_j) = ndimage.distance_transform_edt(components == 0, return_indices=True)
         r, c = near_i[rows[inside], cols[inside]], near_j[rows[inside], cols[inside]]
         close = np.hypot(r - rows[inside], c - cols[inside]) * res <= radius_m
