@@ -119,6 +119,11 @@ class ExplorationParams:
     recovery_back_off_m: float = _p(0.3, 'm', 0.0, 5.0, 'a recovery backs off this far if there is room behind')
     recovery_turn_radps: float = _p(0.8, 'rad/s', 0.05, 10.0, 'a recovery turns once on the spot at this rate')
     recovery_retry_s: float = _p(20.0, 's', 0.0, 3600.0, 'after a recovery, plans are tight and slow for this long')
+    # A robot about to stop whose map closed a way it drove, with frontiers beyond, drives
+    # back along its trail across the closure first (Planner._way_back): at most this many
+    # times in a mission, successful or not, so that a robot walled in by its own map tries
+    # a few ways out and then stops.
+    ways_back_max: int = _p(3, 'drives', 0, 1000, 'drives back across a way the map closed, per mission')
     lookahead_m: float = _p(0.35, 'm', 0.05, 50.0, "path follower's lookahead")
     rotate_in_place_rad: float = _p(0.8, 'rad', 0.0, 3.1416,
                                     'heading error above which the robot turns on the spot')

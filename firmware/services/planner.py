@@ -253,8 +253,9 @@ class Planner:
         before the closure, then along the trail across the closure to the first point cut
         off, on tight, slow plans. The body went through there, so it fits; the map drew the
         gap narrower later (a jamb seen from another side, a drifted pose, an obstacle felt).
-        Each closure gets one try, of at most the time the way takes at min_speed_mps plus
-        recovery_retry_s; None when none is left to try."""
+        Each place beyond a closure gets one try, of at most the time the way takes at
+        min_speed_mps plus recovery_retry_s, and a mission at most ways_back_max; None when
+        none is left to try."""
         p = self.p
         trail = self.map.trail()
         cut = self.known.cut_off(trail, p.escape_radius_m) if self.frontiers.given_up else np.zeros(len(trail), bool)
@@ -264,7 +265,7 @@ class Planner:
             if now_us < until_us and k is not None and cut[k]:
                 return self._way_back_plan(trail, k, now_us, until_us)
             self._way_back_try = None
-        if not self._behind_closed_ways(self.frontiers.given_up):
+        if self.ways_back >= p.ways_back_max or not self._behind_closed_ways(self.frontiers.given_up):
             return None
         spacing_m = 2.0 * p.escape_radius_m
         fresh = [k for k in np.nonzero(cut)[0].tolist()
