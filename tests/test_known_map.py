@@ -110,6 +110,26 @@ def test_a_slot_the_body_fits_only_between_the_wall_cells_centres_is_a_tight_pas
         assert cost_m > 3.0 * math.hypot(0.25, 2.2)
 
 
+@pytest.mark.parametrize("door", [False, True])
+def test_free_cells_seen_through_a_chink_in_a_wall_are_no_frontier_to_stand_at(door):
+    # A wall one cell thick along a corridor's north side; beyond it a fan of free cells
+    # opening on unknown ground, as a beam through a chink draws it. The corridor's cells
+    # lie within reach of the fan, but through the wall: nowhere to look into it from. With
+    # a door in the wall there is.
+    local_map = LocalMap(P, 0.0, 0.0)
+    _paint(local_map, -3.2, 3.2, -1.3, 1.0, WALL_LOGODDS)
+    _paint(local_map, -3.0, 3.0, -1.0, 0.9, FREE_LOGODDS)
+    _paint(local_map, -0.5, 0.5, 1.1, 1.5, FREE_LOGODDS)
+    if door:
+        _paint(local_map, -0.4, 0.4, 1.0, 1.0, FREE_LOGODDS)
+    known = KnownMap(P, local_map)
+    known.refresh(-2.0, 0.0, 0)
+    found = known.frontiers()
+    assert (len(found.reachable), len(found.unreachable)) == ((1, 0) if door else (0, 1))
+    if not door:
+        assert found.unreachable[0].stand_xy is None
+
+
 def test_the_window_alone_finds_no_frontier_once_the_door_is_paged_out():
     local_map = corridor_with_a_door_left_behind()
     layers = local_map.layers()

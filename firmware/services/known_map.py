@@ -25,7 +25,7 @@ import scipy.ndimage as ndimage
 from firmware import kernels
 from firmware.params import ExplorationParams
 from firmware.services.body_fit import PlanningFits
-from firmware.services.grid_paths import extract_path, nearest_traversable
+from firmware.services.grid_paths import extract_path, lines_of_sight, nearest_traversable, traversable_near
 from firmware.services.local_map import LocalMap, close_wall_gaps
 
 # A group of fewer frontier cells is narrower than the body (0.5 m at 0.1 m cells): a speck
@@ -65,8 +65,8 @@ def find_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploration
     from the sight layer (MapLayers.sight), where unknown cells touching a wall count as
     wall: the unknown sliver at a wall's foot that no beam grazed is no way on. The body gets
     to a frontier when one of its cells lies within REACH_CELLS of a reachable cell (the
-    body's edge, where it can look into the unknown); it stands at the reachable cell nearest
-    the middle. (row0, col0): the map's global cell, to name the frontiers' cells."""
+    body's edge, where it can look into the unknown) with no wall between; it stands at the
+    reachable cell nearest the middle (_stand_near). (row0, col0): the map's global cell, to name the frontiers' cells."""
     free = sight == kernels.FREE
     unknown = sight == kernels.UNKNOWN
     frontier = free & ndimage.binary_dilation(unknown, structure=np.ones((3, 3), bool))
@@ -96,7 +96,7 @@ def find_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploration
         if not touched[k]:
             unreach.append(Frontier(cell, area, bits, None))
             continue
-        stand = _stand_near(labels == k, reachable, mi, mj)
+        stand = _stand_near(labels == k, reachable, sight, mi, mj)
         xy = None if stand is None else ((col0 + stand[1] + 0.5) * res, (row0 + stand[0] + 0.5) * res)
         (reach if xy is not None else unreach).append(Frontier(cell, area, bits, xy))
     return Frontiers(tuple(reach), tuple(unreach))
@@ -137,17 +137,20 @@ def _middle_cell(labels: np.ndarray, k: int) -> tuple[int, int]:
     return int(i), int(j)
 
 
-def _stand_near(group: np.ndarray, reachable: np.ndarray, mi: int, mj: int) -> tuple[int, int] | None:
-    """The reachable cell within REACH_CELLS of the group's cells nearest its middle."""
-    hit = nearest_traversable(reachable, mi, mj, REACH_CELLS)
-    if hit is not None:
-        return hit
-    cells = np.argwhere(group)
+def _stand_near(group: np.ndarray, reachable: np.ndarray, sight: np.ndarray, mi: int, mj: int) -> tuple[int, int] | None:
+    """Where the body stands to look into the group: for the group's cell nearest its middle
+    (mi, mj) that has any, the nearest reachable cell within REACH_CELLS of it (a square)
+    with no wall between the two. A fan of free cells drawn through a chink in a wall lies
+    within that reach of the wall's near side, but shows nothing from there."""
+    square = np.ones((2 * REACH_CELLS + 1,) * 2, bool)
+    cells = np.argwhere(group & ndimage.binary_dilation(reachable, structure=square))
     order = np.argsort(((cells - (mi, mj)) ** 2).sum(axis=1), kind="stable")
-    for i, j in cells[order]:
-        hit = nearest_traversable(reachable, int(i), int(j), REACH_CELLS)
-        if hit is not None:
-            return hit
+    for i, j in cells[order].tolist():
+        near = traversable_near(reachable, i, j, REACH_CELLS)
+        seen = lines_of_sight(sight, near[:, 0], near[:, 1], np.full(len(near), i), np.full(len(near), j))
+        if seen.any():
+            k = int(np.argmax(seen))
+            return int(near[k, 0]), int(near[k, 1])
     return None
 
 
