@@ -74,6 +74,7 @@ class Planner:
         self._way_back_try: tuple[tuple[float, float], int] | None = None
         self._ways_back_tried: list[tuple[float, float]] = []
         self.ways_back = 0
+        self._beyond_closed_ways: tuple[Frontier, ...] = ()     # the last stop's (_behind_closed_ways)
 
     def _path(self, cells: list[tuple[int, int]], layers) -> tuple[np.ndarray, np.ndarray]:
         """World points through the cells, each at the cell's best point (its centre unless a
@@ -174,9 +175,12 @@ class Planner:
             # for a way on tight paths before saying so.
             self._tried_tight |= set(near)
             return Plan(None, np.zeros((0, 2)), False, recover=True)
+        way_back = self._way_back_on(x_m, y_m, now_us)
+        if way_back is not None:
+            return way_back
         if self._head_for_far_frontier(view, x_m, y_m, now_us):
             return Plan(None, np.zeros((0, 2)), False)  # the next cycle heads there
-        way_back = self._way_back(x_m, y_m, now_us)
+        way_back = self._way_back(now_us)
         if way_back is not None:
             return way_back
         return Plan(None, np.zeros((0, 2)), True)
@@ -219,8 +223,8 @@ class Planner:
         # a crack in rock): no way on, as behind such a gap.
         looked_at = tuple(f for f in left if self._reached_near(f.stand_xy))
         given_up = tuple(f for f in left if f not in looked_at)
-        suspect = self._behind_closed_ways(found.unreachable) + \
-            self._behind_felt_obstacles(found.unreachable, x_m, y_m, now_us)
+        self._beyond_closed_ways = self._behind_closed_ways(found.unreachable)
+        suspect = self._beyond_closed_ways + self._behind_felt_obstacles(found.unreachable, x_m, y_m, now_us)
         suspect = tuple(f for k, f in enumerate(suspect) if f not in suspect[:k])
         self.frontiers = FrontiersLeft(given_up + suspect,
                                        tuple(f for f in found.unreachable if f not in suspect) + looked_at)
@@ -246,7 +250,7 @@ class Planner:
         beyond = {f.cell for f in self.known.frontiers_from(trail[cut], self.p.escape_radius_m).reachable}
         return tuple(f for f in unreachable if f.cell in beyond)
 
-    def _way_back(self, x_m: float, y_m: float, now_us: int) -> Plan | None:
+    def _way_back(self, now_us: int) -> Plan | None:
         """A robot about to stop whose map has closed a way it drove, with frontiers beyond
         (_behind_closed_ways): before giving them up it drives back the way it came, from
         where it stands through what it reaches to the last trail point it still reaches
@@ -257,29 +261,37 @@ class Planner:
         min_speed_mps plus recovery_retry_s, and a mission at most ways_back_max; None when
         none is left to try."""
         p = self.p
-        trail = self.map.trail()
-        cut = self.known.cut_off(trail, p.escape_radius_m) if self.frontiers.given_up else np.zeros(len(trail), bool)
-        if self._way_back_try is not None:
-            beyond_xy, until_us = self._way_back_try
-            k = self._trail_index(trail, beyond_xy)
-            if now_us < until_us and k is not None and cut[k]:
-                return self._way_back_plan(trail, k, now_us, until_us)
-            self._way_back_try = None
-        if self.ways_back >= p.ways_back_max or not self._behind_closed_ways(self.frontiers.given_up):
+        if self.ways_back >= p.ways_back_max or not self._beyond_closed_ways:
             return None
+        trail = self.map.trail()
+        cut = self.known.cut_off(trail, p.escape_radius_m)
         spacing_m = 2.0 * p.escape_radius_m
         fresh = [k for k in np.nonzero(cut)[0].tolist()
                  if all(math.hypot(trail[k, 0] - tx, trail[k, 1] - ty) > spacing_m for tx, ty in self._ways_back_tried)]
         if not fresh:
             return None
         k = max(fresh)                  # the most recent place beyond a closure
-        beyond_xy = (float(trail[k, 0]), float(trail[k, 1]))
-        self._ways_back_tried.append(beyond_xy)
+        self._ways_back_tried.append((float(trail[k, 0]), float(trail[k, 1])))
         self.ways_back += 1
         return self._way_back_plan(trail, k, now_us, None)
 
+    def _way_back_on(self, x_m: float, y_m: float, now_us: int) -> Plan | None:
+        """The way back being tried (_way_back), from where the robot is now, while its time
+        lasts and its end is still cut off; None once it is over."""
+        if self._way_back_try is None:
+            return None
+        beyond_xy, until_us = self._way_back_try
+        self.known.refresh(x_m, y_m, now_us)
+        trail = self.map.trail()
+        k = self._trail_index(trail, beyond_xy)
+        if now_us < until_us and k is not None and self.known.cut_off(trail[k:k + 1], self.p.escape_radius_m)[0]:
+            return self._way_back_plan(trail, k, now_us, until_us)
+        self._way_back_try = None
+        return None
+
     @staticmethod
     def _trail_index(trail: np.ndarray, xy: tuple[float, float]) -> int | None:
+        """The index of this trail point (the latest if it is there more than once)."""
         hit = np.nonzero((trail[:, 0] == xy[0]) & (trail[:, 1] == xy[1]))[0]
         return int(hit[-1]) if len(hit) else None
 
