@@ -131,11 +131,7 @@ def test_a_gap_the_body_drove_through_stays_open_to_later_plans():
     centre went through (mark_passed, diagonal steps filled in) are traversable from then
     on, while free."""
     p = ExplorationParams()
-    local_map = LocalMap(p, 0.0, 0.0)
-    i0, j0 = local_map.cell_of(0.0, 0.0)
-    local_map.logodds[i0 - 10:i0 + 11, j0 - 10:j0 + 11] = p.logodds_min
-    local_map.logodds[i0 - 10:i0 + 11, j0 - 3] = p.logodds_max     # two walls along y, 5 cells apart
-    local_map.logodds[i0 - 10:i0 + 11, j0 + 2] = p.logodds_max
+    local_map, (i0, j0) = _walls_along_y(p, -3, 2)                 # two walls along y, 5 cells apart
     for tight in (False, True):
         assert not local_map.layers(tight).traversable[i0 - 5:i0 + 6, j0 - 2:j0 + 2].any()
     for k in range(-5, 6):                                         # a slightly slanted drive through
@@ -152,11 +148,7 @@ def test_a_door_the_body_drove_through_stays_open_when_later_scans_draw_it_narro
     remembered. When later scans draw the door 0.5 m wide, too narrow even for a tight
     passage, plans still go through where the body went."""
     p = ExplorationParams()
-    local_map = LocalMap(p, 0.0, 0.0)
-    i0, j0 = local_map.cell_of(0.0, 0.0)
-    local_map.logodds[i0 - 10:i0 + 11, j0 - 10:j0 + 11] = p.logodds_min
-    local_map.logodds[i0 - 10:i0 + 11, j0 - 4] = p.logodds_max     # two walls along y, 7 cells apart
-    local_map.logodds[i0 - 10:i0 + 11, j0 + 4] = p.logodds_max
+    local_map, (i0, j0) = _walls_along_y(p, -4, 4)                 # two walls along y, 7 cells apart
     assert local_map.layers().traversable[i0 - 5:i0 + 6, j0].all()
     assert local_map.in_passage_at(0.05, 0.05)
     for k in range(-9, 10):                                        # down the door's middle
@@ -168,6 +160,17 @@ def test_a_door_the_body_drove_through_stays_open_when_later_scans_draw_it_narro
     for tight in (False, True):
         assert not _the_same_map_never_driven(p, local_map).layers(tight).traversable[i0 - 5:i0 + 6, j0].any()
     assert kernel_path_exists(local_map.layers().traversable, (i0 - 8, j0), (i0 + 8, j0))
+
+
+def _walls_along_y(p: ExplorationParams, west_col: int, east_col: int) -> tuple[LocalMap, tuple[int, int]]:
+    """A free square 2.1 m a side round (0, 0) with a wall along y in the columns this many
+    cells from the origin's; and the origin's cell."""
+    local_map = LocalMap(p, 0.0, 0.0)
+    i0, j0 = local_map.cell_of(0.0, 0.0)
+    local_map.logodds[i0 - 10:i0 + 11, j0 - 10:j0 + 11] = p.logodds_min
+    local_map.logodds[i0 - 10:i0 + 11, j0 + west_col] = p.logodds_max
+    local_map.logodds[i0 - 10:i0 + 11, j0 + east_col] = p.logodds_max
+    return local_map, (i0, j0)
 
 
 def _the_same_map_never_driven(p: ExplorationParams, local_map: LocalMap) -> LocalMap:

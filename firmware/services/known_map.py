@@ -66,7 +66,8 @@ def find_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploration
     wall: the unknown sliver at a wall's foot that no beam grazed is no way on. The body gets
     to a frontier when one of its cells lies within REACH_CELLS of a reachable cell (the
     body's edge, where it can look into the unknown) with no wall between; it stands at the
-    reachable cell nearest the middle (_stand_near). (row0, col0): the map's global cell, to name the frontiers' cells."""
+    reachable cell nearest the middle (_stand_near). (row0, col0): the map's global cell, to
+    name the frontiers' cells."""
     free = sight == kernels.FREE
     unknown = sight == kernels.UNKNOWN
     frontier = free & ndimage.binary_dilation(unknown, structure=np.ones((3, 3), bool))
@@ -88,6 +89,8 @@ def find_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploration
     yy, xx = np.mgrid[-REACH_CELLS:REACH_CELLS + 1, -REACH_CELLS:REACH_CELLS + 1]
     near_reach = ndimage.binary_dilation(reachable, structure=yy * yy + xx * xx <= REACH_CELLS * REACH_CELLS)
     touched = np.bincount(labels.ravel(), weights=near_reach.ravel(), minlength=n + 1) > 0
+    # The cells a reachable cell lies within REACH_CELLS of along both axes (_stand_near's square).
+    near_square = ndimage.binary_dilation(reachable, structure=np.ones((2 * REACH_CELLS + 1,) * 2, bool))
     for k, (mi, mj), bits in zip(groups.tolist(), middles.tolist(), hidden_bit.tolist()):
         if bits < params.report_unreachable_bit:
             continue
@@ -96,7 +99,7 @@ def find_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploration
         if not touched[k]:
             unreach.append(Frontier(cell, area, bits, None))
             continue
-        stand = _stand_near(labels == k, reachable, sight, mi, mj)
+        stand = _stand_near(labels == k, near_square, reachable, sight, mi, mj)
         xy = None if stand is None else ((col0 + stand[1] + 0.5) * res, (row0 + stand[0] + 0.5) * res)
         (reach if xy is not None else unreach).append(Frontier(cell, area, bits, xy))
     return Frontiers(tuple(reach), tuple(unreach))
@@ -137,13 +140,14 @@ def _middle_cell(labels: np.ndarray, k: int) -> tuple[int, int]:
     return int(i), int(j)
 
 
-def _stand_near(group: np.ndarray, reachable: np.ndarray, sight: np.ndarray, mi: int, mj: int) -> tuple[int, int] | None:
+def _stand_near(group: np.ndarray, near_square: np.ndarray, reachable: np.ndarray, sight: np.ndarray,
+                mi: int, mj: int) -> tuple[int, int] | None:
     """Where the body stands to look into the group: for the group's cell nearest its middle
-    (mi, mj) that has any, the nearest reachable cell within REACH_CELLS of it (a square)
-    with no wall between the two. A fan of free cells drawn through a chink in a wall lies
-    within that reach of the wall's near side, but shows nothing from there."""
-    square = np.ones((2 * REACH_CELLS + 1,) * 2, bool)
-    cells = np.argwhere(group & ndimage.binary_dilation(reachable, structure=square))
+    (mi, mj) that has any, the nearest reachable cell within REACH_CELLS of it (a square;
+    near_square marks the cells that have one) with no wall between the two. A fan of free
+    cells drawn through a chink in a wall lies within that reach of the wall's near side,
+    but shows nothing from there."""
+    cells = np.argwhere(group & near_square)
     order = np.argsort(((cells - (mi, mj)) ** 2).sum(axis=1), kind="stable")
     for i, j in cells[order].tolist():
         near = traversable_near(reachable, i, j, REACH_CELLS)
