@@ -222,12 +222,15 @@ class ExplorerAgent:
             return
         pose = self.pose.read()
         # The pose when the scan was taken, not now: a LiDAR's scans arrive on its own clock.
-        x_m, y_m, yaw_rad = self.pose.pose_at(scan.stamp_us)
-        held_at = self.stall.on_scan(x_m, y_m, yaw_rad, scan.angle_min_rad, scan.angle_increment_rad,
-                                     scan.ranges_m, scan.range_max_m)
+        # The slip check weighs the wheels' own travel against the scans': a correction
+        # localisation made between two scans is no travel the wheels counted.
+        odometry_x_m, odometry_y_m, odometry_yaw_rad = self.pose.odometry_at(scan.stamp_us)
+        held_at = self.stall.on_scan(odometry_x_m, odometry_y_m, odometry_yaw_rad, scan.angle_min_rad,
+                                     scan.angle_increment_rad, scan.ranges_m, scan.range_max_m)
+        x_m, y_m, yaw_rad = self.pose.corrected(odometry_x_m, odometry_y_m, odometry_yaw_rad)
         if held_at is not None:
             # The wheels slipped: the body is behind where odometry puts it.
-            x_m, y_m = held_at
+            x_m, y_m, yaw_rad = self.pose.corrected(*held_at, odometry_yaw_rad)
             self.pose.correct_at(scan.stamp_us, x_m, y_m, yaw_rad)
             pose = self.pose.read()
         self.local_map.follow(pose.x_m, pose.y_m)

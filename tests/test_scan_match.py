@@ -135,3 +135,16 @@ def test_matching_scans_adds_no_error_where_odometry_has_none():
     r = run_mission(MissionConfig(map_spec="cave:3:30x30", seed=4, max_sim_s=300.0), params=P, world_params=exact)
     assert r.explorer_stats()["scan_matches"][0] > 100
     assert r.pose_error_max_m[0] < 0.05
+
+
+def test_a_correction_between_two_scans_is_no_wheel_slip():
+    # Odometry ten times as drifty as the default, wheels that never slip: scan matching
+    # corrects the pose hundreds of times along the tunnel, and the slip check, which weighs
+    # the wheels' travel against the scans', must not take a correction's jump for travel
+    # the LiDAR did not see (it stopped the robot as if held, and marked a wall ahead).
+    drifty = dataclasses.replace(WorldParams(), odom_trans_noise_per_m=0.02, odom_yaw_drift_per_m=0.002)
+    r = run_mission(MissionConfig(map_spec="tunnel:3:40x40", seed=1, max_sim_s=150.0, strategy="independent"),
+                    params=P, world_params=drifty)
+    stats = r.explorer_stats()
+    assert stats["scan_corrections"][0] > 100
+    assert stats["bumps"][0] == 0 and stats["stall_back_offs"][0] == 0

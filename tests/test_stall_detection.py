@@ -23,14 +23,16 @@ CONTROL_HZ = 20.0
 
 def _drive(occ: OccupancyMap, start, v_mps: float, seconds: float, slip: float):
     """Drive straight at v_mps, feeding the detector as the agent does: the command every
-    tick, each scan with the odometry pose of its time. Returns the times (s) at which it
-    said stuck, for each slip it found how far behind odometry and how far from the true
-    position it put the body (x, m), and the world."""
+    tick, each scan with the odometry pose of its time, and the pose corrected where it found
+    a slip (a shift along x: the drive is straight along it). Returns the times (s) at which
+    it said stuck, for each slip it found how far behind the corrected pose and how far from
+    the true position it put the body (x, m), and the world."""
     world = World(occ, [start], seed=3, params=dataclasses.replace(WorldParams(), wheel_slip_frac=slip,
                                                                        lidar_phase_us=23_000))
     drive, lidar, odometry = SimDriveBase(world, 0), SimLidar(world, 0), SimOdometry(world, 0)
     detector = StallDetector(P, CONTROL_HZ)
     stuck_s, slipped = [], []
+    shift_x_m = 0.0   # corrected pose = odometry's + this
     for _ in range(int(seconds * 1e6 / TICK_US)):
         world.step(TICK_US)
         scan = lidar.latest_scan()
@@ -43,7 +45,9 @@ def _drive(occ: OccupancyMap, start, v_mps: float, seconds: float, slip: float):
             held_at = detector.on_scan(x_m, y_m, o.yaw_rad, scan.angle_min_rad, scan.angle_increment_rad,
                                        scan.ranges_m, scan.range_max_m)
             if held_at is not None:
-                slipped.append((x_m - held_at[0], world.true_pose(0).x_m - held_at[0]))
+                body_x_m = held_at[0] + shift_x_m
+                slipped.append((x_m + shift_x_m - body_x_m, world.true_pose(0).x_m - body_x_m))
+                shift_x_m = body_x_m - x_m
         if detector.stuck(o.v_mps):
             stuck_s.append(world.now_us / 1e6)
         drive.command(v_mps, 0.0)
@@ -59,8 +63,7 @@ def test_a_body_pushing_a_wall_is_told_within_two_seconds_whether_the_wheels_sto
     assert stuck_s, "pushing a wall for 6 s was never noticed"
     assert contact_s - 0.2 < stuck_s[0] < contact_s + 2.0
     if slip > 0.0:
-        # Where the scans put the body: behind where odometry says, and near where it is (the
-        # test does not correct the odometry, so each check sees only the travel since the last).
+        # Where the scans put the body: behind where the corrected pose says, and near where it is.
         assert slipped and all(behind_m > 0.5 * P.slip_check_m and abs(off_m) < 0.05 for behind_m, off_m in slipped)
 
 

@@ -151,9 +151,11 @@ class StallDetector:
 
     def on_scan(self, x_m: float, y_m: float, yaw_rad: float, angle_min_rad: float, angle_increment_rad: float,
                 ranges_m: np.ndarray, range_max_m: float) -> tuple[float, float] | None:
-        """Called with each scan and the pose odometry gives for its time. When the wheels
-        slipped (odometry counted travel since an earlier scan that the scans do not show):
-        where the scans put the robot, (x_m, y_m), and the next stuck() says so; else None."""
+        """Called with each scan and odometry's own pose for its time (uncorrected by
+        localisation: the travel between two scans is the wheels'). When the wheels slipped
+        (odometry counted travel since an earlier scan that the scans do not show): where the
+        scans put the robot, (x_m, y_m) in odometry's frame, and the next stuck() says so;
+        else None."""
         # Any forward command counts, a crawl too: a body held while it turns slowly towards
         # its path, commanded a few cm/s, presses on what holds it all the same.
         if self.p.slip_check_m <= 0 or self._last_cmd_v <= 0.0:
@@ -173,9 +175,7 @@ class StallDetector:
         if share is None or share > SLIP_SEEN_SHARE:
             return None
         self._slipped = True
-        x_m, y_m = ref[0] + share * (x_m - ref[0]), ref[1] + share * (y_m - ref[1])
-        self._reference = (x_m, y_m, yaw_rad, points)
-        return x_m, y_m
+        return ref[0] + share * (x_m - ref[0]), ref[1] + share * (y_m - ref[1])
 
 
 def scan_points(angle_min_rad: float, angle_increment_rad: float, ranges_m: np.ndarray,

@@ -45,7 +45,7 @@ class PoseService:
                 del self._stamps[0], self._samples[0]
         if self._uncorrected:
             return s
-        x_m, y_m, yaw_rad = self._corrected(s.x_m, s.y_m, s.yaw_rad)
+        x_m, y_m, yaw_rad = self.corrected(s.x_m, s.y_m, s.yaw_rad)
         return dataclasses.replace(s, x_m=x_m, y_m=y_m, yaw_rad=yaw_rad)
 
     def latest(self) -> tuple[float, float, float] | None:
@@ -56,13 +56,13 @@ class PoseService:
         """(x_m, y_m, yaw_rad) at stamp_us, corrected, interpolated between the samples
         around it (yaw the short way round); the oldest or newest sample outside the
         history's span; None before any sample."""
-        raw = self._odometry_at(stamp_us)
-        return None if raw is None else self._corrected(*raw)
+        raw = self.odometry_at(stamp_us)
+        return None if raw is None else self.corrected(*raw)
 
     def correct_at(self, stamp_us: int, x_m: float, y_m: float, yaw_rad: float) -> None:
         """Localisation found the robot at (x_m, y_m, yaw_rad) at stamp_us: correct this and
         every later pose by the rigid transform that takes the odometry's pose then there."""
-        raw = self._odometry_at(stamp_us)
+        raw = self.odometry_at(stamp_us)
         if raw is None:
             return
         ox, oy, oyaw = raw
@@ -76,15 +76,17 @@ class PoseService:
     def _uncorrected(self) -> bool:
         return not self._turn_rad and not self._shift_x_m and not self._shift_y_m
 
-    def _corrected(self, x_m: float, y_m: float, yaw_rad: float) -> tuple[float, float, float]:
+    def corrected(self, x_m: float, y_m: float, yaw_rad: float) -> tuple[float, float, float]:
+        """An odometry pose in the map: carried by the correction localisation found."""
         if self._uncorrected:
             return x_m, y_m, yaw_rad
         c, s = math.cos(self._turn_rad), math.sin(self._turn_rad)
         yaw = (yaw_rad + self._turn_rad + math.pi) % (2 * math.pi) - math.pi
         return c * x_m - s * y_m + self._shift_x_m, s * x_m + c * y_m + self._shift_y_m, yaw
 
-    def _odometry_at(self, stamp_us: int) -> tuple[float, float, float] | None:
-        """The odometry's own pose at stamp_us (pose_at without the correction)."""
+    def odometry_at(self, stamp_us: int) -> tuple[float, float, float] | None:
+        """The odometry's own pose at stamp_us (pose_at without the correction): the
+        wheels' travel between two stamps, with no jump where localisation corrected."""
         if not self._stamps:
             return None
         k = bisect.bisect_left(self._stamps, stamp_us)
