@@ -123,9 +123,10 @@ def test_a_mission_reports_how_far_each_robot_believes_itself_from_where_it_is(f
     exact = dataclasses.replace(WorldParams(), odom_trans_noise_per_m=0.0, odom_yaw_noise_per_rad=0.0,
                                 odom_yaw_drift_per_m=0.0, odom_speed_noise_frac=0.0)
     cfg = MissionConfig(map_spec="cave:3:30x30", robots=2, seed=4, max_sim_s=120.0, strategy=scheme, frames=frames)
-    r = run_mission(cfg, world_params=exact)
+    odometry_alone = ExplorationParams(scan_match=False)   # what the firmware believes is odometry's, exactly
+    r = run_mission(cfg, world_params=exact, params=odometry_alone)
     assert r.pose_error_max_m == pytest.approx([0.0, 0.0], abs=1e-6)
-    drifting = run_mission(cfg)
+    drifting = run_mission(cfg, params=odometry_alone)
     assert all(e > 0.0 for e in drifting.pose_error_max_m)
     assert drifting.to_json()["pose_error_m"] == [round(e, 3) for e in drifting.pose_error_m]
 
