@@ -92,8 +92,7 @@ def test_matching_is_due_after_travel_or_turning_and_never_when_off():
     assert not matcher.due(0.1, 0.0, 0.05)
     assert matcher.due(P.scan_match_every_m, 0.0, 0.0)
     assert matcher.due(0.0, 0.0, P.scan_match_every_rad)
-    assert ScanMatcher(ExplorationParams()).due(0.0, 0.0, 0.0)          # on by default
-    assert not ScanMatcher(ExplorationParams(scan_match=False)).due(0.0, 0.0, 0.0)
+    assert not ScanMatcher(ExplorationParams()).due(0.0, 0.0, 0.0)      # off by default
 
 
 class _Odometry:

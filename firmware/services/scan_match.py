@@ -4,15 +4,15 @@ Wheel odometry drifts, and its heading error bends everything mapped after it: a
 degrees after a few hundred metres put a door mapped at the start a metre from where the
 robot, back there, sees it, and the old map paged back in then shows walls across the way
 (one robot on Willow Garage, seed 0: 13168 s with the drift the simulated odometry has,
-7730 s without it). A real robot localises against its map, and so does this one. Every
+7730 s without it). A real robot localises against its map; with scan_match on, so does this one. Every
 match_every_m of travel (or match_every_rad of turning) a scan is matched to the window
 before it is folded in: poses on a small grid around the one odometry predicts are scored
 by how close the scan's endpoints fall to the walls mapped (a correlative matcher, Olson
 2009), and the best becomes the pose, the correction carried on for the odometry that
 follows (services.pose). Where the scan fits as well without a correction (along a
 corridor with no feature, all poses score alike), odometry is trusted: of the poses that
-fit within TIE_SCORE of the best the one nearest the prediction is taken. It runs while
-ExplorationParams.scan_match is on (the default).
+fit within TIE_SCORE of the best the one nearest the prediction is taken. It runs only with
+ExplorationParams.scan_match (off by default).
 """
 from __future__ import annotations
 
