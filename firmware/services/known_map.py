@@ -247,11 +247,6 @@ class KnownMap:
     def _inside(self, i: int, j: int) -> bool:
         return 0 <= i < self.reachable.shape[0] and 0 <= j < self.reachable.shape[1]
 
-    def mapped(self, x_m: float, y_m: float) -> bool:
-        """Has the robot mapped this point (seen it free or a wall)?"""
-        i, j = self.cell_of(x_m, y_m)
-        return self._inside(i, j) and self.sight[i, j] != kernels.UNKNOWN
-
     def route(self, x_m: float, y_m: float) -> tuple[np.ndarray, float] | None:
         """World points (cell centres) of the shortest path from where the map was derived
         to the point, and its cost (m, with the inflation's extra); None if the body cannot

@@ -133,7 +133,7 @@ class Planner:
             settle_choice_costs(candidates, paths, self.targets.target, self.p.resolution_m)
             c = self.targets.choose(candidates)
             key = (c.x_m, c.y_m)
-            cells = self._route(c, paths, layers.state, topo_src, topo_dist, topo_parent, x_m, y_m, now_us)
+            cells = self._route(c, paths, layers.state, topo_src, topo_dist, topo_parent, x_m, y_m)
             if cells is None and key in through_known:
                 cells = through_known[key]
             elif cells is None:
@@ -382,7 +382,7 @@ class Planner:
 
     # --- routes -----------------------------------------------------------------------
     def _route(self, c: Candidate, paths: GridPaths, state: np.ndarray, topo_src, topo_dist, topo_parent,
-               x_m: float, y_m: float, now_us: int) -> list[tuple[int, int]] | None:
+               x_m: float, y_m: float) -> list[tuple[int, int]] | None:
         """The cells of a local path to the target, or to the farthest vertex on the
         topological route towards it that the local map can reach."""
         reachable = paths.reachable
@@ -390,7 +390,7 @@ class Planner:
         in_window = self._in_window(wi, wj)
         if in_window and reachable[wi, wj]:
             return paths.path(wi, wj)
-        if topo_src is None or self._mapped_out_of_reach(c, x_m, y_m, now_us):
+        if topo_src is None:
             return None
         _, goal_vertex = self.topo.cost_to(topo_dist, c.x_m, c.y_m)
         if goal_vertex is None:
@@ -419,17 +419,6 @@ class Planner:
         if best is None or math.hypot(xy[best[0], 0] - x_m, xy[best[0], 1] - y_m) < self.p.waypoint_reached_m:
             return None  # the only reachable place on the way is where we stand: no progress
         return paths.path(best[1][0], best[1][1])
-
-    def _mapped_out_of_reach(self, c: Candidate, x_m: float, y_m: float, now_us: int) -> bool:
-        """Is c a place the robot has mapped that no way through all it mapped reaches? The
-        graph joins places by straight lines and ends at its place nearest c: followed,
-        it leads there and no further, and leaving there for another target and coming back
-        would start the same way again without end. (A place it has not mapped, a
-        teammate's, the graph alone knows a way to; and a robot whose map reaches nowhere
-        from where it stands, boxed in for a moment, is no judge.)"""
-        self.known.refresh(x_m, y_m, now_us)
-        return self.known.mapped(c.x_m, c.y_m) and bool(self.known.reachable.any()) \
-            and self.known.route(c.x_m, c.y_m) is None
 
     def _walled_off(self, place_xy_m: np.ndarray, goal: tuple[int, int], reachable: np.ndarray,
                     state: np.ndarray) -> bool:
