@@ -371,3 +371,37 @@ def test_an_ordinary_plan_takes_a_tight_passage_where_no_wider_way_goes(passage_
     room_beside_body_m = plan.clearance_m[in_slot] - params.robot_radius_m
     assert in_slot.any() and (room_beside_body_m < 0.05).all()      # the follower slows down there
 
+
+
+def corridor_past_a_sealed_room() -> LocalMap:
+    """A robot that mapped a corridor from x = 0 to 70 m along y = 0 and, north of it at
+    x = 60-64 m, a room it saw whole through a window but with no door (walls all round),
+    and came back to x = 10 m: the room is paged out, 30 m beyond the window's edge."""
+    local_map = LocalMap(P, 50.0, 0.0)
+    _corridor(local_map, 30.0, 70.0)
+    _paint(local_map, 70.0, 70.2, -1.3, 1.3, WALL_LOGODDS)          # the far end
+    _paint(local_map, 59.7, 64.3, 2.7, 7.3, WALL_LOGODDS)           # the room's walls ...
+    _paint(local_map, 60.0, 64.0, 3.0, 7.0, FREE_LOGODDS)           # ... round its floor
+    assert local_map.follow(10.0, 0.0)
+    _corridor(local_map, 0.0, 30.0)
+    _paint(local_map, -0.2, 0.0, -1.3, 1.3, WALL_LOGODDS)           # the near end
+    return local_map
+
+
+def test_a_target_the_graph_leads_towards_but_not_to_keeps_its_strikes_between_tries():
+    # The topological map's places run along the corridor to x = 60 m, past the window's
+    # edge at 30 m. Beside the last of them the window reaches (x = 29.3 m) the graph leads
+    # no further and nothing mapped reaches the room: the target is struck; 14 m back the
+    # graph leads towards it again. Coming and going, the strikes add up and the target is
+    # dropped, instead of being counted afresh at each return.
+    rig = PlannerRig(corridor_past_a_sealed_room(), "independent")
+    for x_m in range(5, 61):
+        rig.topo.add((0, x_m * 100, 0, 0, 1, 0, 0))
+    rig.waypoints.take_up(62.0, 5.0, 1.0)
+    now_us = 0
+    for x_m in [15.0, 29.3] * (2 * P.unreachable_strikes):
+        now_us += 2_000_000
+        plan = rig.plan(x_m, 0.0, now_us)
+        if plan.recover:
+            rig.targets.recovery_started()          # as the agent does, then backs off and turns
+    assert rig.stat("targets_unreachable") == 1

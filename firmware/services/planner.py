@@ -142,7 +142,8 @@ class Planner:
                 if cells is not None and c.cost_m > graph_cost_m:
                     continue
             if cells is not None:
-                ended = self.targets.head_for(c, now_us)
+                reaches_it = tuple(cells[-1]) == self.map.cell_of(c.x_m, c.y_m)
+                ended = self.targets.head_for(c, now_us, reaches_it)
                 self._tell(ended, "stalled")
                 if self.targets.recovery_wanted and not tight:
                     self._spare_hopeless_recoveries(start)

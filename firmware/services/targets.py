@@ -162,13 +162,18 @@ class TargetKeeper:
                     return c
         return best
 
-    def head_for(self, c: Candidate, now_us: int) -> Target | None:
+    def head_for(self, c: Candidate, now_us: int, reaches_it: bool = True) -> Target | None:
         """The robot has a route to c and heads there. Time spent heading for each target
         accumulates across switches, so two targets taking turns cannot keep a robot busy
         for ever; a target the robot gets no closer to within its budget is given up
-        (returned, with the outcome STALLED counted)."""
-        self._strikes.pop((c.x_m, c.y_m), None)
+        (returned, with the outcome STALLED counted). A route that reaches c clears its
+        strikes; one that ends at a place on the way (reaches_it False: where the
+        topological map or the window ends) leaves them standing, for c may prove out of
+        reach from there again, and a robot that left there for another target and came
+        back would otherwise start counting afresh each time."""
         key = (c.x_m, c.y_m)
+        if reaches_it:
+            self._strikes.pop(key, None)
         if self.target is not None:
             prev = (self.target.x_m, self.target.y_m)
             self._time_on_us[prev] = self._time_on_us.get(prev, 0) + now_us - self._last_track_us
