@@ -81,6 +81,11 @@ class ExplorationParams:
     # drawn through a chink in a wall.
     report_unreachable_bit: float = _p(900.0, 'bit', 0.0, 1e9,
                                        'a frontier the body cannot reach is reported if this much is unseen beyond it')
+    # Pockets (waypoints holding less than report_unreachable_bit) are not chased across the
+    # map: one is a candidate only while the robot is this close to it (straight line), so it
+    # is looked into on the way past and not driven back to from the far side of the map.
+    pocket_reach_m: float = _p(5.0, 'm', 0.0, 1000.0,
+                               'a waypoint holding less than report_unreachable_bit is a candidate only this close')
     # Robot body and navigation.
     robot_radius_m: float = _p(0.25, 'm', 0.05, 5.0, 'robot body radius')
     # Clearance as a cost (nav2's inflation layer: lethal, then decaying). The scan fill marks

@@ -121,7 +121,8 @@ class Planner:
         self.scheme.filter_waypoints(view)
         self._tell(self.targets.end_if_reached(x_m, y_m), "reached")
         view.target = self.targets.target
-        own = [Candidate(w.x_m, w.y_m, w.e_bit, False) for w in self.waypoints.items]
+        held = None if self.targets.target is None else (self.targets.target.x_m, self.targets.target.y_m)
+        own = [Candidate(w.x_m, w.y_m, w.e_bit, False) for w in self.waypoints.worth_heading_for(x_m, y_m, held)]
         candidates = self.scheme.rank(view, own)
         self.targets.forget_strikes_except(candidates)
         self._place_in_window(candidates, paths)
@@ -164,7 +165,7 @@ class Planner:
             return Plan(None, np.zeros((0, 2)), False, recover=True)
         if self.targets.strikes_pending():
             return Plan(None, np.zeros((0, 2)), False)
-        last_look = self.waypoints.look_again(self.map, layers.sight, reachable)
+        last_look = self.waypoints.look_again(self.map, layers.sight, reachable, x_m, y_m)
         if last_look is not None:
             # The scheme may still leave it to a teammate that reported having seen it.
             self.scheme.filter_waypoints(dataclasses.replace(view, closing=True))

@@ -120,13 +120,29 @@ class WaypointSet:
         r2 = self.p.ban_radius_m ** 2
         self.items = [w for w in self.items if (w.x_m - x_m) ** 2 + (w.y_m - y_m) ** 2 >= r2]
 
-    def look_again(self, local_map, state: np.ndarray, reachable: np.ndarray) -> Waypoint | None:
-        """A robot about to stop: is there still information it can reach? Bans keep a robot
-        from circling a place (every candidate within ban_radius_m of a waypoint reached or
-        dropped), and in a small room that can hide a frontier the robot never looked into.
-        So the candidate holding the most information (at least e_min) is taken up despite
-        its ban, once per candidate cell and never near a place the robot failed to get to;
-        returned (and added to W), or None."""
+    def worth_heading_for(self, x_m: float, y_m: float,
+                          held: tuple[float, float] | None = None) -> list[Waypoint]:
+        """The members of W a robot at (x_m, y_m) may head for: every one holding at least
+        report_unreachable_bit, pockets (less) within pocket_reach_m, and the one at held
+        (the current target: a path that bends away from it does not drop it). A pocket is
+        too small to matter for the mission's end (no frontier hiding less is reported), so
+        it is looked into on the way past and not driven back to across the map."""
+        return [w for w in self.items
+                if (w.x_m, w.y_m) == held or self._worth(w.e_bit, w.x_m - x_m, w.y_m - y_m)]
+
+    def _worth(self, e_bit, dx_m, dy_m):
+        """worth_heading_for's rule, on scalars or arrays."""
+        p = self.p
+        return (e_bit >= p.report_unreachable_bit) | (dx_m * dx_m + dy_m * dy_m <= p.pocket_reach_m ** 2)
+
+    def look_again(self, local_map, state: np.ndarray, reachable: np.ndarray, x_m: float,
+                   y_m: float) -> Waypoint | None:
+        """A robot at (x_m, y_m) about to stop: is there still information it can reach?
+        Bans keep a robot from circling a place (every candidate within ban_radius_m of a
+        waypoint reached or dropped), and in a small room that can hide a frontier the robot
+        never looked into. So the candidate holding the most information (at least e_min, and
+        worth heading for from here) is taken up despite its ban, once per candidate cell and
+        never near a place the robot failed to get to; returned (and added to W), or None."""
         p = self.p
         # Finer than the candidate sub-grid: a strip the body can enter may lie between its points.
         cand, e_bit = self._scored_candidates(local_map, state, reachable, LOOK_AGAIN_SPACING_CELLS)
@@ -134,6 +150,7 @@ class WaypointSet:
         xs = (local_map.col0 + cand[:, 1] + 0.5) * p.resolution_m
         ys = (local_map.row0 + cand[:, 0] + 0.5) * p.resolution_m
         ok = (e_bit >= p.min_cluster_entropy_bit) & np.array([k not in self._looked_again for k in keys], bool)
+        ok &= self._worth(e_bit, xs - x_m, ys - y_m)
         if self._failed:
             f = np.asarray(self._failed)
             ok &= ~(((xs[:, None] - f[None, :, 0]) ** 2 + (ys[:, None] - f[None, :, 1]) ** 2)
