@@ -21,6 +21,10 @@ def test_a_pocket_is_worth_heading_for_only_near_or_while_it_is_the_target():
     assert waypoints.worth_heading_for(0.0, 0.0) == [near_pocket, far_room]
     assert waypoints.worth_heading_for(0.0, 0.0, held=(-20.0, 0.0)) == [near_pocket, held_pocket, far_room]
     assert waypoints.worth_heading_for(0.0, 8.0) == [far_pocket, far_room]
+    # A frontier's one try before stopping goes wherever it is and whatever it holds now.
+    last_try = waypoints.take_up(-40.0, 0.0, P.report_unreachable_bit)
+    last_try.e_bit = small
+    assert last_try in waypoints.worth_heading_for(0.0, 0.0)
 
 
 def _free_hall_with_a_pocket(pocket_row: int, pocket_col: int) -> np.ndarray:

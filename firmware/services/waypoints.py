@@ -21,6 +21,9 @@ class Waypoint:
     x_m: float
     y_m: float
     e_bit: float
+    # Made despite a ban, by a last look or for a frontier before stopping (take_up): worth
+    # heading for whatever it holds, since it is that place's one try.
+    taken_up: bool = False
 
 
 # A change of state marks the cells of its block (this many cells a side) changed, and the
@@ -123,12 +126,13 @@ class WaypointSet:
     def worth_heading_for(self, x_m: float, y_m: float,
                           held: tuple[float, float] | None = None) -> list[Waypoint]:
         """The members of W a robot at (x_m, y_m) may head for: every one holding at least
-        report_unreachable_bit, pockets (less) within pocket_reach_m, and the one at held
-        (the current target: a path that bends away from it does not drop it). A pocket is
+        report_unreachable_bit, pockets (less) within pocket_reach_m, the one at held (the
+        current target: a path that bends away from it does not drop it) and those taken up
+        despite a ban (take_up: a frontier's one try before stopping). A pocket is
         too small to matter for the mission's end (no frontier hiding less is reported), so
         it is looked into on the way past and not driven back to across the map."""
         return [w for w in self.items
-                if (w.x_m, w.y_m) == held or self._worth(w.e_bit, w.x_m - x_m, w.y_m - y_m)]
+                if w.taken_up or (w.x_m, w.y_m) == held or self._worth(w.e_bit, w.x_m - x_m, w.y_m - y_m)]
 
     def _worth(self, e_bit, dx_m, dy_m):
         """worth_heading_for's rule, on scalars or arrays."""
@@ -166,7 +170,7 @@ class WaypointSet:
         """Make a waypoint here despite any ban near it (the bans within ban_radius_m are
         lifted); returned, and added to W."""
         r2 = self.p.ban_radius_m ** 2
-        w = Waypoint(x_m, y_m, e_bit)
+        w = Waypoint(x_m, y_m, e_bit, taken_up=True)
         self.banned = [b for b in self.banned if (b[0] - x_m) ** 2 + (b[1] - y_m) ** 2 >= r2]
         self.items.append(w)
         return w
