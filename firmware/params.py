@@ -221,6 +221,14 @@ class ExplorationParams:
     pereira_revive_min_bit: float = _p(4000.0, 'bit', 0.0, 1e9,
                                        "with no teammate exploring, waypoints this rich in regions others "
                                        "claimed are taken back")
+    # Within a category the spec's A9 orders by U = e_bit / (cost_m + pereira_cost_offset_m):
+    # the paper weighs "size of frontier and cost" with no formula; the offset keeps a waypoint
+    # under the robot from outweighing every other. 0 with pereira_by_cost: the plain-distance
+    # ablation (pereira_order=cost).
+    pereira_cost_offset_m: float = _p(1.0, 'm', 0.0, 100.0,
+                                      "within a category, waypoints are ordered by e_bit / (cost + this)")
+    pereira_by_cost: bool = _p(False, 'bool', None, None,
+                               'within a category, the cheapest waypoint first (the ablation of the spec)')
     # MR-TopoMap (firmware.schemes.mr_topomap; ../shared/schemes/mrtopomap.md sections 2, 4
     # and 5). The descriptor, direction and merge geometry stay in
     # firmware/schemes/mr_topomap/params.py; these are the knobs the spec names (th_merge,

@@ -1,10 +1,20 @@
 """Pereira goal choice and gossip (firmware/schemes/pereira/choice.py, gossip.py): labels,
 the current region's margin, the four categories, eq. (3), and records crossing a chain
 of robots by summaries (pereira.md 6.1 items 6, 10, 11)."""
+import dataclasses
+import math
+
+import numpy as np
+
+from firmware.params import ExplorationParams
+from firmware.schemes.base import PlanningView
 from firmware.schemes.pereira.choice import CURRENT, FS, FU, OTHER, Whereabouts, categorise, conflicts
 from firmware.schemes.pereira.gossip import Holdings
 from firmware.schemes.pereira.records import Claim, Gate, Place
 from firmware.schemes.pereira.regions import fold
+from firmware.services.local_map import LocalMap
+from firmware.services.targets import Candidate
+from tests.doubles import PlannerRig
 
 
 def corridor_graph():
@@ -94,3 +104,28 @@ def test_records_cross_a_chain_by_summaries():
                     for hearer in links[listener]:
                         held[hearer].add(name, r)
     assert held["A"].upto(3) == 8 and held["B"].upto(3) == 8
+
+
+def _ranked(params, near_cost_m, far_cost_m):
+    """Pereira's rank of two waypoints in the same category (no regions yet: both OTHER),
+    a poor one near and a rich one far, costed as the planner would have costed them."""
+    rig = PlannerRig(LocalMap(params, 0.0, 0.0), "pereira", params=params)
+    view = PlanningView(0.0, 0.0, 1_000_000, rig.local_map.layers().sight, None, frozenset(),
+                        lambda cands: np.full(len(cands), math.inf))
+    near, far = Candidate(1.0, 0.0, 300.0, False), Candidate(6.0, 0.0, 2000.0, False)
+    ranked = rig.scheme.rank(view, [near, far])
+    near.cost_m, far.cost_m = near_cost_m, far_cost_m
+    assert near.rank == far.rank
+    return rig.targets.choose(ranked), near, far
+
+
+def test_within_a_category_the_choice_is_by_information_over_cost_plus_a_metre():
+    """The spec's A9: U = e_bit / (cost_m + 1 m); pereira_by_cost: the cheapest."""
+    p = ExplorationParams()
+    chosen, near, far = _ranked(p, 1.0, 6.0)
+    assert (near.gain, near.gain_cost_offset_m) == (300.0, p.pereira_cost_offset_m)
+    assert chosen is far                                  # 2000 / 7 > 300 / 2
+    chosen, near, far = _ranked(p, 1.0, 15.0)
+    assert chosen is near                                 # 2000 / 16 < 300 / 2
+    chosen, near, far = _ranked(dataclasses.replace(p, pereira_by_cost=True), 1.0, 6.0)
+    assert chosen is near and not near.by_gain

@@ -42,16 +42,18 @@ class Candidate:
     rank: int = 0                   # lower is better; the scheme's ranking, before cost
     penalty_m: float = 0.0          # the scheme's utility discount, in metres of path added to the cost
     local_cell: tuple[int, int] | None = None   # its local map cell, if a grid path reaches it
-    # A scheme that chooses by utility per metre (WiSER-X's eq. 2, gain / cost) sets the gain;
+    # A scheme that chooses by utility per metre (WiSER-X's eq. 2, gain / cost; Pereira's A9,
+    # e_bit / (cost + 1 m)) sets the gain, and the metres added to the cost before dividing;
     # nan: the choice is by cost plus penalty.
     gain: float = math.nan
+    gain_cost_offset_m: float = 0.0
 
     @property
     def by_gain(self) -> bool:
         return not math.isnan(self.gain)
 
     def gain_per_m(self, min_cost_m: float) -> float:
-        return self.gain / max(self.cost_m, min_cost_m)
+        return self.gain / max(self.cost_m + self.gain_cost_offset_m, min_cost_m)
 
 
 class TargetKeeper:

@@ -44,11 +44,6 @@ max_range_m) cuts every link longer than M metres, the ideal link's included; re
 robots out of range through the others' summaries and pushes (tests/test_pereira_range.py).
 
 Not yet, or not as the spec says:
-- within a category the shared choice takes the cheapest path, not the spec's
-  U = e_bit / (cost + 1) (the spec's `pereira_order=cost` ablation): the shared choice
-  orders by (rank, cost + penalty) with the cost settled by the planner after the scheme's
-  rank, and a quotient of that cost is no additive penalty, so U does not fit it without
-  changing the shared choice for every scheme;
 - the label grid covers the robot's window; points outside it (remembered waypoints,
   teammates' far goals) are still labelled by the nearest place with no gate between
   (RegionGraph.label), which can reach through a wall no gate marks;

@@ -377,6 +377,8 @@ class Pereira(Scheme):
             clash = r is not None and r in heading and \
                 conflicts(math.hypot(c.x_m - view.x_m, c.y_m - view.y_m), me, heading[r])
             c.rank = cat + (CONFLICT_RANK if clash else 0)
+            if not p.pereira_by_cost:
+                c.gain, c.gain_cost_offset_m = c.e_bit, p.pereira_cost_offset_m
             self.counts["choices_yielded"] += int(clash)
             self._category[(c.x_m, c.y_m)] = cat
         cost_along_graph(view, own)
