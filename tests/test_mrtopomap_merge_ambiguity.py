@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from firmware.schemes.mr_topomap import merge as M
@@ -22,6 +22,10 @@ frames = st.builds(M.SE2, st.floats(-math.pi, math.pi), st.floats(-2000, 2000), 
 
 @settings(max_examples=10, deadline=None)
 @given(st.sampled_from([CAVE, "intel.yaml", "depot.yaml"]), st.integers(0, 10**6), frames, frames, st.booleans())
+@example(CAVE, 1, M.SE2(1.5, 0.0, 0.0), M.SE2(0.0, 0.0, 0.0), True).xfail(
+    reason="known wrong merge (issue 25), found by this test on 2026-12-04: four look-alike pairs "
+           "(support 4 = k_min, no competing cluster) pass the occupancy and view checks",
+    raises=AssertionError)
 def test_disjoint_areas_never_merge(spec, seed, fa, fb, with_grid):
     """A the left 40 % of a map, B the right 40 %: nothing they saw is shared, so no merge.
     (The depot is a hall whose outline is symmetric: without the view check B's part merges
