@@ -223,8 +223,8 @@ class ExplorationParams:
                                        "claimed are taken back")
     # Within a category the spec's A9 orders by U = e_bit / (cost_m + pereira_cost_offset_m):
     # the paper weighs "size of frontier and cost" with no formula; the offset keeps a waypoint
-    # under the robot from outweighing every other. 0 with pereira_by_cost: the plain-distance
-    # ablation (pereira_order=cost).
+    # under the robot from outweighing every other. pereira_by_cost=true orders by cost alone,
+    # the spec's plain-distance ablation (pereira_order=cost).
     pereira_cost_offset_m: float = _p(1.0, 'm', 0.0, 100.0,
                                       "within a category, waypoints are ordered by e_bit / (cost + this)")
     pereira_by_cost: bool = _p(False, 'bool', None, None,
