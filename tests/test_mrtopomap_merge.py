@@ -14,6 +14,7 @@ import random
 
 import numpy as np
 import pytest
+from scipy.stats import poisson
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -249,3 +250,18 @@ def test_own_map_checks():
     #                                           (0.5, 0.5) and (9.5, 9.5) are open unknown
     assert m.check(np.array([[4.6, 4.6]])) == (1, 1)                # the pocket: free but unreachable
     assert m.check(np.array([[3.0, 7.0]])) == (1, 0)                # room 2, through the door
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(1, 5000), st.integers(1, 40), st.floats(1.0, 1e5))
+def test_chance_clusters_is_the_poisson_tail_of_uniform_hypotheses(n_hyp, support, area_m2):
+    """NFA = H P(Poisson(H p) >= support - 1), p = (pi inlier_m^2 / area) (2 inlier_deg / 360 deg):
+    more support is rarer, more hypotheses or less area make it commoner."""
+    p = min(1.0, math.pi * DEFAULT.inlier_m ** 2 / area_m2 * 2 * DEFAULT.inlier_deg / 360.0)
+    nfa = M.chance_clusters(n_hyp, support, area_m2)
+    want = n_hyp * (poisson.sf(support - 2, n_hyp * p) if support > 1 else 1.0)
+    assert nfa == pytest.approx(want, rel=1e-9, abs=1e-300)
+    assert M.chance_clusters(n_hyp, support + 1, area_m2) <= nfa
+    assert M.chance_clusters(n_hyp + 1, support, area_m2) >= nfa
+    assert M.chance_clusters(n_hyp, support, area_m2 * 2) <= nfa
+
