@@ -22,8 +22,14 @@ or more are known. Here, per receiving robot n and teammate j:
    kept or refused cluster is skipped; otherwise its inliers are fitted (below), the inliers
    re-collected around the fit and fitted again. The walk stops when no seed left can merge
    (support below k_min and nothing kept) or change the ratio test (support * ratio <= c1).
-3. Check against the receiver's own map. j's vertices within occ_radius (10 m, in j's frame)
-   of the cluster's inliers are mapped by the fit.
+3. Check against the receiver's own map. j's vertices within occ_radius (15 m, in j's frame)
+   of the cluster's inliers are mapped by the fit. Why 15 m: a place that repeats (a stretch
+   of cave tunnel that looks like another turned by 110 deg) can explain every view within
+   10 m of its look-alike pairs; a little farther out the two places differ. At 10 m one
+   disjoint cave draw in 100 merged wrongly with a consensus of 6 that chance does not
+   explain (below); at 15 m none did, and 2 more of 100 Intel half-overlaps merged (right).
+   Farther out, odometry drift between j's vertices (A9) would start to contradict true
+   merges.
    a. Occupancy check (the spec's): those landing in the own known area count as tested; a
       vertex is bad if it lands deeper than occ_depth (0.3 m) inside the own walls (OCCUPIED
       cells, and unknown pockets enclosed by the own map: the inside of a wall seen from both
@@ -76,7 +82,7 @@ sorted canonically, descriptor scores are exact integers over exact norms (descr
 and every sum runs over arrays in that order.
 
 What the result does not account for: odometry drift between j's vertices (A9; the 1.5 m
-inlier tolerance and the 10 m occupancy radius absorb some); places that repeat beyond what
+inlier tolerance and the 15 m occupancy radius absorb some); places that repeat beyond what
 both robots have seen (in maze_b whole blocks recur, and a teammate that saw only one copy
 merges onto the other: no local evidence can tell them apart); transitive merges (mrlink,
 A8), left to the caller. Cost: `estimate` recomputes every hypothesis; with a profile grid

@@ -46,7 +46,7 @@ class MrTopoParams:
     ratio: float = 2.0                # ... at least this many times the best other cluster's support
     nfa_max: float = 0.01             # ... and only if chance would give fewer than this many clusters as strong
     #                                   (the a-contrario test in merge.py; calibrated on static tests, see there)
-    occ_radius_m: float = 10.0        # occupancy check: the teammate's vertices this close to an inlier
+    occ_radius_m: float = 15.0        # occupancy check: the teammate's vertices this close to an inlier
     occ_depth_m: float = 0.3          # bad: deeper than this inside the own walls
     occ_share: float = 0.02           # reject when more than max(occ_tolerated, occ_share * tested) are bad
     occ_tolerated: int = 1
