@@ -265,3 +265,28 @@ def test_chance_clusters_is_the_poisson_tail_of_uniform_hypotheses(n_hyp, suppor
     assert M.chance_clusters(n_hyp + 1, support, area_m2) >= nfa
     assert M.chance_clusters(n_hyp, support, area_m2 * 2) <= nfa
 
+
+
+@settings(max_examples=5, deadline=None)
+@given(st.integers(0, 10**6))
+def test_grid_scores_kept_between_calls_give_the_same_hypotheses(seed):
+    """While the own map grows (the profile grid rendered again from more of it, most
+    lattice points keeping their profile; at the end every profile held twice) and a
+    teammate's vertices come and go in any subset, the hypotheses with the grid's scores
+    kept from call to call are those scored afresh, bit for bit."""
+    rng = np.random.default_rng(seed)
+    A, B, axy, _, _ = W.pair_records(CAVE, seed, FA, FB, "half")
+    kept = M.PairScores()
+    for share in (0.4, 0.4, 0.7, 1.0, 1.0):
+        n_own = max(1, int(round(len(axy) * share)))
+        own = W.own_map(CAVE, axy[:n_own], FA)
+        grid = M.ProfileGrid.of_map(own.state, own.row0, own.col0, own.res_m, W.RANGE_MAX)
+        if share == 1.0:         # every profile twice, at two places
+            grid = M.ProfileGrid(np.vstack([grid.xy, grid.xy + 0.25]), np.vstack([grid.codes, grid.codes]))
+        theirs = M.VertexSet([B[i] for i in rng.permutation(len(B))[:int(rng.integers(1, len(B) + 1))]])
+        own_set = M.VertexSet(A[:n_own])
+        fresh = M.hypotheses(own_set, theirs, grid)
+        again = M.hypotheses(own_set, theirs, grid, grid_scores=kept)
+        assert len(fresh) > 0
+        for name in fresh._fields:
+            assert np.array_equal(getattr(again, name), getattr(fresh, name)), name

@@ -37,5 +37,5 @@ robot's own places only.
 What does not exist yet: routing along the merged graph (teammates' edges), the anti-trap
 rule (III-D3), mrlink (transitive merges, the inverse-consistency check on the air),
 re-sending records a teammate missed (a record lost on the air is lost), stretching
-d_vertex to a slower band's budget (5.1), hypotheses cached per received vertex.
+d_vertex to a slower band's budget (5.1).
 """

@@ -85,9 +85,11 @@ What the result does not account for: odometry drift between j's vertices (A9; t
 inlier tolerance and the 15 m occupancy radius absorb some); places that repeat beyond what
 both robots have seen (in maze_b whole blocks recur, and a teammate that saw only one copy
 merges onto the other: no local evidence can tell them apart); transitive merges (mrlink,
-A8), left to the caller. Cost: `estimate` recomputes every hypothesis; with a profile grid
-of 4 000 cells and 100 teammate vertices that is ~0.5 s here, so a caller should re-run it
-when records arrive in batches, or cache hypotheses per received vertex (not done yet).
+A8), left to the caller. Cost: scoring a profile grid of 4 000 cells against 100 teammate
+vertices takes ~0.3 s here; `TeammateMerge` keeps the scores (`PairScores`) and scores only
+lattice points whose profile changed and vertices it did not hold before. The rest of
+`estimate` is recomputed each call, so a caller should re-run it when records arrive in
+batches.
 """
 from __future__ import annotations
 
@@ -284,37 +286,13 @@ def _empty() -> Hypotheses:
                       np.zeros(0, np.int64), z)
 
 
-def _pairs(anchor_c: np.ndarray, their_c: np.ndarray, th: float, top: int | None = None,
-           anchor_xy: np.ndarray | None = None, sep_m: float = 0.0):
-    """(anchor index, their index, score, shift) of every pair scoring >= th, sorted by
-    (their index, anchor index). With `top`: per received vertex only its `top` best anchors
-    that lie at least sep_m apart (greedy by score, ties: the lower index): the best anchor
-    of up to `top` distinct places. Without that separation the top anchors are neighbours
-    of one place, and a place that looks like others would hide that it does."""
+def _scored(anchor_c: np.ndarray, their_c: np.ndarray, th: float) -> tuple[np.ndarray, ...]:
+    """(anchor index, their index, score, shift) of every pair scoring >= th, in no set order."""
     out_a, out_b, out_s, out_k = [], [], [], []
     chunk = max(1, _CHUNK_SCORES // max(1, anchor_c.shape[0] * desc.BINS))
     for b0 in range(0, their_c.shape[0], chunk):
         best, shift = desc.peaks(desc.shift_scores(anchor_c, their_c[b0:b0 + chunk]))     # (n, chunk)
-        if top is None:
-            a, b = np.nonzero(best >= th)
-        else:
-            a_l, b_l = [], []
-            for col in range(best.shape[1]):
-                cand = np.flatnonzero(best[:, col] >= th)
-                cand = cand[np.argsort(-best[cand, col], kind="stable")]
-                chosen: list[int] = []
-                for c in cand:
-                    if all((anchor_xy[c, 0] - anchor_xy[k, 0]) ** 2 + (anchor_xy[c, 1] - anchor_xy[k, 1]) ** 2
-                           >= sep_m * sep_m for k in chosen):
-                        chosen.append(int(c))
-                        if len(chosen) == top:
-                            break
-                chosen.sort()
-                a_l += chosen
-                b_l += [col] * len(chosen)
-            a, b = np.asarray(a_l, dtype=np.int64), np.asarray(b_l, dtype=np.int64)
-            order = np.lexsort((a, b))
-            a, b = a[order], b[order]
+        a, b = np.nonzero(best >= th)
         out_a.append(a)
         out_b.append(b + b0)
         out_s.append(best[a, b])
@@ -323,9 +301,132 @@ def _pairs(anchor_c: np.ndarray, their_c: np.ndarray, th: float, top: int | None
     return cat(out_a, np.int64), cat(out_b, np.int64), cat(out_s, np.float64), cat(out_k, np.float64)
 
 
+def _distinct_places(a: np.ndarray, b: np.ndarray, s: np.ndarray, k: np.ndarray, top: int,
+                     anchor_xy: np.ndarray, sep_m: float) -> tuple[np.ndarray, ...]:
+    """Of pairs sorted by (their index, anchor index): per received vertex only its `top`
+    best anchors that lie at least sep_m apart (greedy by score, ties: the lower index)."""
+    keep = np.zeros(len(a), dtype=bool)
+    starts = np.flatnonzero(np.r_[True, b[1:] != b[:-1]]) if len(b) else np.zeros(0, np.int64)
+    ends = np.r_[starts[1:], len(b)]
+    sep2 = sep_m * sep_m
+    for lo, hi in zip(starts, ends):
+        by_score = lo + np.argsort(-s[lo:hi], kind="stable")
+        chosen: list[int] = []
+        for c in by_score:
+            xy = anchor_xy[a[c]]
+            if all((xy[0] - anchor_xy[a[n], 0]) ** 2 + (xy[1] - anchor_xy[a[n], 1]) ** 2 >= sep2 for n in chosen):
+                chosen.append(int(c))
+                if len(chosen) == top:
+                    break
+        keep[chosen] = True
+    return a[keep], b[keep], s[keep], k[keep]
+
+
+def _pairs(anchor_c: np.ndarray, their_c: np.ndarray, th: float, top: int | None = None,
+           anchor_xy: np.ndarray | None = None, sep_m: float = 0.0,
+           cache: PairScores | None = None, anchor_codes: np.ndarray | None = None,
+           their_codes: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+    """(anchor index, their index, score, shift) of every pair scoring >= th, sorted by
+    (their index, anchor index). With `top`: per received vertex only its `top` best anchors
+    that lie at least sep_m apart: the best anchor of up to `top` distinct places. Without
+    that separation the top anchors are neighbours of one place, and a place that looks like
+    others would hide that it does. With a cache (and the codes behind anchor_c and their_c)
+    only pairs it has not scored before are scored."""
+    if cache is None:
+        a, b, s, k = _scored(anchor_c, their_c, th)
+    else:
+        a, b, s, k = cache.scored(anchor_codes, their_codes, th)
+    order = np.lexsort((a, b))
+    a, b, s, k = a[order], b[order], s[order], k[order]
+    if top is not None:
+        a, b, s, k = _distinct_places(a, b, s, k, top, anchor_xy, sep_m)
+    return a, b, s, k
+
+
+class PairScores:
+    """Scores >= a threshold between two sets of descriptors, kept from one call to the
+    next: only rows of codes not seen in the last call are scored again. A score depends on
+    nothing but the two rows of codes and is exact (descriptor.py), so the pairs are the
+    same, bit for bit, as scoring everything. Used for the profile grid against one
+    teammate's vertices: between two renders of the grid most lattice points keep their
+    profile, and between two merges most vertices were held before."""
+
+    def __init__(self) -> None:
+        self._anchors = np.zeros((0, desc.BINS), dtype=np.int64)      # unique code rows, sorted
+        self._theirs = np.zeros((0, desc.BINS), dtype=np.int64)
+        self._th: float | None = None
+        self._pairs = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))   # unique indices
+
+    def scored(self, anchor_codes: np.ndarray, their_codes: np.ndarray, th: float) -> tuple[np.ndarray, ...]:
+        """`_scored` of the centred codes, row indices into anchor_codes and their_codes."""
+        ua, inv_a = _unique_rows(anchor_codes)
+        ut, inv_t = _unique_rows(their_codes)
+        if th != self._th:
+            self._anchors, self._theirs = ua[:0], ut[:0]
+        old_a = _row_lookup(self._anchors, ua)           # per new unique row: the old one, or -1
+        old_t = _row_lookup(self._theirs, ut)
+        # pairs between rows both held before: from the last call
+        new_of_old_a = np.full(len(self._anchors), -1, np.int64)
+        new_of_old_a[old_a[old_a >= 0]] = np.flatnonzero(old_a >= 0)
+        new_of_old_t = np.full(len(self._theirs), -1, np.int64)
+        new_of_old_t[old_t[old_t >= 0]] = np.flatnonzero(old_t >= 0)
+        pa, pt, ps, pk = self._pairs
+        pa, pt = new_of_old_a[pa], new_of_old_t[pt]
+        kept = (pa >= 0) & (pt >= 0)
+        parts = [(pa[kept], pt[kept], ps[kept], pk[kept])]
+        # new anchors against every vertex; anchors held before against new vertices
+        fresh_a, fresh_t = np.flatnonzero(old_a < 0), np.flatnonzero(old_t < 0)
+        held_a = np.flatnonzero(old_a >= 0)
+        if len(fresh_a) and len(ut):
+            a, t, sc, k = _scored(desc.centred(ua[fresh_a]), desc.centred(ut), th)
+            parts.append((fresh_a[a], t, sc, k))
+        if len(held_a) and len(fresh_t):
+            a, t, sc, k = _scored(desc.centred(ua[held_a]), desc.centred(ut[fresh_t]), th)
+            parts.append((held_a[a], fresh_t[t], sc, k))
+        pairs = tuple(np.concatenate([p[n] for p in parts]) for n in range(4))
+        self._anchors, self._theirs, self._th, self._pairs = ua, ut, th, pairs
+        return _expand(pairs, inv_a, inv_t)
+
+
+def _unique_rows(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the distinct rows, sorted; for each row its index among them)."""
+    codes = np.asarray(codes, dtype=np.int64).reshape(-1, desc.BINS)
+    if not len(codes):
+        return codes, np.zeros(0, np.int64)
+    u, inv = np.unique(codes, axis=0, return_inverse=True)
+    return u, inv.reshape(-1).astype(np.int64)
+
+
+def _row_lookup(table: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """For each row, its index in table (distinct rows), or -1."""
+    index = {r.tobytes(): n for n, r in enumerate(table)}
+    return np.array([index.get(r.tobytes(), -1) for r in rows], dtype=np.int64)
+
+
+def _expand(pairs: tuple[np.ndarray, ...], inv_a: np.ndarray, inv_t: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Pairs of distinct rows to pairs of every row holding them (in no set order)."""
+    ua, ut, s, k = pairs
+    order_a, count_a, start_a = _rows_of(inv_a)
+    order_t, count_t, start_t = _rows_of(inv_t)
+    per_pair = count_a[ua] * count_t[ut]
+    n = np.repeat(np.arange(len(ua)), per_pair)
+    local = np.arange(int(per_pair.sum())) - np.repeat(np.cumsum(per_pair) - per_pair, per_pair)
+    across = count_t[ut[n]]
+    return (order_a[start_a[ua[n]] + local // across], order_t[start_t[ut[n]] + local % across], s[n], k[n])
+
+
+def _rows_of(inv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows grouped by the distinct row they hold: (row indices in groups, each group's size,
+    each group's start in the first)."""
+    order = np.argsort(inv, kind="stable")
+    count = np.bincount(inv, minlength=int(inv.max()) + 1 if len(inv) else 0)
+    return order, count, np.cumsum(count) - count
+
+
 def hypotheses(own: VertexSet, theirs: VertexSet, grid: ProfileGrid | None = None,
-               params: MrTopoParams = DEFAULT) -> Hypotheses:
-    """Step 1: every hypothesis the descriptors give."""
+               params: MrTopoParams = DEFAULT, grid_scores: PairScores | None = None) -> Hypotheses:
+    """Step 1: every hypothesis the descriptors give. grid_scores: the grid's scores against
+    these vertices kept from earlier calls (the same hypotheses, less scoring)."""
     if len(theirs) == 0 or (len(own) == 0 and (grid is None or len(grid) == 0)):
         return _empty()
     parts = []
@@ -334,7 +435,7 @@ def hypotheses(own: VertexSet, theirs: VertexSet, grid: ProfileGrid | None = Non
         parts.append((a, own.xy[a], b, s, k))
     if grid is not None and len(grid):
         a, b, s, k = _pairs(grid.centred, theirs.centred, params.th_grid, params.grid_top, grid.xy,
-                            params.cluster_sep_m)
+                            params.cluster_sep_m, grid_scores, grid.codes, theirs.codes)
         parts.append((a + len(own), grid.xy[a], b, s, k))
     anchor = np.concatenate([x[0] for x in parts])
     p = np.concatenate([x[1] for x in parts]).reshape(-1, 2)
@@ -549,9 +650,10 @@ def decide(h: Hypotheses, kept: tuple[Cluster, ...], refused: tuple[Cluster, ...
 
 
 def estimate(own: VertexSet, theirs: VertexSet, grid: ProfileGrid | None = None, own_map: OwnMap | None = None,
-             params: MrTopoParams = DEFAULT) -> MergeResult:
-    """T_own<-theirs from the vertex records held: a pure function of its arguments."""
-    h = hypotheses(own, theirs, grid, params)
+             params: MrTopoParams = DEFAULT, grid_scores: PairScores | None = None) -> MergeResult:
+    """T_own<-theirs from the vertex records held: a pure function of its arguments
+    (grid_scores only saves work: see `hypotheses`)."""
+    h = hypotheses(own, theirs, grid, params, grid_scores)
     kept, refused = consensus(h, theirs, own_map, params)
     return decide(h, kept, refused, own, theirs, grid, params)
 
@@ -593,6 +695,7 @@ class TeammateMerge(TeammateVertices):
         self._last: MergeResult | None = None
         self._last_key: tuple | None = None
         self._last_merged: SE2 | None = None
+        self._grid_scores = PairScores()
         self.merges = 0          # not merged -> merged
         self.unmerges = 0        # merged -> not merged (later evidence made it ambiguous)
         self.corrections = 0     # merged again elsewhere than the last merge, maybe after an unmerged
@@ -606,7 +709,7 @@ class TeammateMerge(TeammateVertices):
                own_map_token if own_map is not None else None)
         if self._last is not None and key == self._last_key and (own_map is None or own_map_token is not None):
             return self._last
-        r = estimate(own, self.vertices, grid, own_map, self.p)
+        r = estimate(own, self.vertices, grid, own_map, self.p, self._grid_scores)
         prev = self._last
         if prev is not None and prev.merged and not r.merged:
             self.unmerges += 1

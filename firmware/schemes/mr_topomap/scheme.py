@@ -51,6 +51,7 @@ from typing import NamedTuple
 
 import numpy as np
 import scipy.ndimage as ndimage
+from scipy.spatial import cKDTree
 
 from firmware import kernels
 from firmware.scheduler import Task
@@ -314,31 +315,28 @@ class MrTopoMap(Scheme):
         self.counts["ud_records_sent"] += 1
 
     def _update_directions(self, view: PlanningView, open_dirs: list[Direction]) -> list[Direction]:
-        """III-E: clear the directions explored now; the ones left."""
-        lm, res = self.s.local_map, self.s.params.resolution_m
-        sight = view.sight
-        free = sight == kernels.FREE
-        unknown = sight == kernels.UNKNOWN
-        pad = np.pad(unknown, 1, constant_values=True)
-        frontier = free & (pad[:-2, 1:-1] | pad[2:, 1:-1] | pad[1:-1, :-2] | pad[1:-1, 2:])
-        ri, rj = lm.cell_of(view.x_m, view.y_m)
-        start = nearest_traversable(free, ri, rj, 5) if lm.in_window(ri, rj) else None
-        if start is not None:
-            labels, _ = ndimage.label(free, structure=_FOUR)
-            frontier &= labels == labels[start]
-        else:
-            frontier[:] = False
-        near_frontier = ndimage.distance_transform_edt(~frontier) * res if frontier.any() else None
-        left, cleared = [], {}
+        """III-E: clear the directions explored now; the ones left. A direction is explored
+        when the robot came within explored_radius_m of its point, or when its point is a
+        window cell the robot knows (its own direction, or a known cell) with no reachable
+        frontier cell that close."""
+        lm = self.s.local_map
         r = self.pp.explored_radius_m
-        for d in open_dirs:
-            gone = math.hypot(d.x_m - view.x_m, d.y_m - view.y_m) <= r
-            if not gone:
+        unknown = view.sight == kernels.UNKNOWN
+        reached = [math.hypot(d.x_m - view.x_m, d.y_m - view.y_m) <= r for d in open_dirs]
+        judged = {}                          # direction index -> its window cell
+        for n, d in enumerate(open_dirs):
+            if not reached[n]:
                 i, j = lm.cell_of(d.x_m, d.y_m)
                 # A window cell away from the edge: the map around it is what the robot knows.
                 if 2 <= i < lm.n - 2 and 2 <= j < lm.n - 2 and (d.own or not unknown[i, j]):
-                    gone = near_frontier is None or near_frontier[i, j] > r
-            if gone:
+                    judged[n] = (i, j)
+        no_frontier_near = self._no_frontier_near(view, list(judged.values()), r) if judged else []
+        gone = reached[:]
+        for n, far in zip(judged, no_frontier_near):
+            gone[n] = far
+        left, cleared = [], {}
+        for n, d in enumerate(open_dirs):
+            if gone[n]:
                 cleared[d.key] = cleared.get(d.key, 0) | (1 << d.sector)
             else:
                 left.append(d)
@@ -346,6 +344,26 @@ class MrTopoMap(Scheme):
             self.counts["directions_explored"] += bin(mask).count("1")
             self._clear(key, mask)
         return left
+
+    def _no_frontier_near(self, view: PlanningView, cells: list[tuple[int, int]], radius_m: float) -> list[bool]:
+        """For each window cell: no frontier cell the robot can reach (4-connected free
+        space from where it stands) lies within radius_m of it."""
+        lm, res = self.s.local_map, self.s.params.resolution_m
+        free = view.sight == kernels.FREE
+        pad = np.pad(view.sight == kernels.UNKNOWN, 1, constant_values=True)
+        frontier = free & (pad[:-2, 1:-1] | pad[2:, 1:-1] | pad[1:-1, :-2] | pad[1:-1, 2:])
+        ri, rj = lm.cell_of(view.x_m, view.y_m)
+        start = nearest_traversable(free, ri, rj, 5) if lm.in_window(ri, rj) else None
+        if start is None:
+            return [True] * len(cells)
+        labels, _ = ndimage.label(free, structure=_FOUR)
+        frontier &= labels == labels[start]
+        if not frontier.any():
+            return [True] * len(cells)
+        # Distances at these few cells only (a distance transform of the whole window gives
+        # the same numbers, exact square roots of whole numbers, at every cell).
+        dist_cells, _ = cKDTree(np.argwhere(frontier).astype(np.float64)).query(np.array(cells, dtype=np.float64))
+        return [bool(d * res > radius_m) for d in dist_cells]
 
     def _eq1(self, xy: np.ndarray) -> np.ndarray:
         """Eq. (1) for points xy (n, 2) in the own frame: w d(c_own, f) + (1 - w)/m sum_j
