@@ -7,8 +7,8 @@ import sys
 import threading
 
 from host_tools.mission import MissionConfig, run_mission
-from host_tools.options import (FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEME, SEED,
-                                SET, SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread)
+from host_tools.options import (FAIL, FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEME,
+                                SEED, SET, SLOW, SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread)
 from host_tools.overrides import combine_overrides, describe, params_help, params_with
 from host_tools.progress import progress_bar
 from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, strict_dumps, write_text
@@ -27,7 +27,7 @@ OPTIONS = (
         "team's staging area (default: the map's start); once per robot, each robot's own start",
         repeat=True, metavar="X,Y[,YAW_DEG]"),
     SPREAD, SPREAD_MAX,
-    WHEEL_SLIP, LIDAR_PHASE,
+    WHEEL_SLIP, LIDAR_PHASE, FAIL, SLOW,
     SET, JSON,
     Opt("--out", "out_dir", "write mission.png and mission.json here (each replaced only by a complete new one)",
         metavar="DIR"),
@@ -52,16 +52,17 @@ def main(args: argparse.Namespace) -> int:
             raise ValueError(f"--start given {len(args.start)} times: give it once (the staging area) or once per "
                              f"robot ({args.robots}, from --robots)")
         outputs = [] if args.out is None else [check_out_file(args.out / n) for n in ("mission.png", "mission.json")]
+        cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
+                            max_sim_s=args.max_sim_s, radio=args.radio, starts=tuple(args.start),
+                            strategy=args.strategy, frames=args.frames, serial_radio=args.serial_radio,
+                            serial_lidar=args.serial_lidar, serial_uwb=args.serial_uwb,
+                            capture_path=None if args.capture is None else str(args.capture),
+                            wheel_slip_frac=args.wheel_slip, lidar_phase_ms=args.lidar_phase_ms, range_m=args.range_m,
+                            spread_m=args.spread, spread_max_m=args.spread_max,
+                            failures=tuple(args.failures), speed_factors=tuple(args.speed_factors))
     except (ValueError, OutputPathError) as exc:
         print(f"lorascout run: {exc}", file=sys.stderr)
         return 2
-    cfg = MissionConfig(map_spec=args.map, robots=args.robots, seed=args.seed,
-                        max_sim_s=args.max_sim_s, radio=args.radio, starts=tuple(args.start),
-                        strategy=args.strategy, frames=args.frames, serial_radio=args.serial_radio,
-                        serial_lidar=args.serial_lidar, serial_uwb=args.serial_uwb,
-                        capture_path=None if args.capture is None else str(args.capture),
-                        wheel_slip_frac=args.wheel_slip, lidar_phase_ms=args.lidar_phase_ms, range_m=args.range_m,
-                        spread_m=args.spread, spread_max_m=args.spread_max)
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
     state = {"last": 0.0, "stop": False}
 

@@ -76,6 +76,25 @@ class MissionConfig:
     # A hard radio range in metres on top of the profile (radio_sim.channel.Channel's
     # max_range_m: the ideal link's disc model); None: the profile's own reach.
     range_m: float | None = None
+    # Robots that fail (robot index, mission seconds): from then on the robot does nothing at
+    # all (world_sim World.power_off); the others go on. Robots with a slower drive (robot
+    # index, share of the speed and turn-rate limits in (0, 1]); their firmware is not told.
+    failures: tuple[tuple[int, float], ...] = ()
+    speed_factors: tuple[tuple[int, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        for name, pairs in (("failures (--fail)", self.failures), ("speed_factors (--slow)", self.speed_factors)):
+            robots = [r for r, _ in pairs]
+            for r in robots:
+                if not 0 <= r < self.robots:
+                    raise ValueError(f"{name}: robot {r} is not in the team of {self.robots} (--robots; robots 0.."
+                                     f"{self.robots - 1})")
+            if len(set(robots)) != len(robots):
+                raise ValueError(f"{name}: robot {sorted(r for r in robots if robots.count(r) > 1)[0]} given twice")
+        for r, at_s in self.failures:
+            if not 0.0 <= at_s <= self.max_sim_s:
+                raise ValueError(f"failures (--fail): robot {r} at {at_s:g} s is after the mission's end "
+                                 f"(--max-sim-s {self.max_sim_s:g})")
 
 
 @dataclass
@@ -136,6 +155,9 @@ class MissionResult:
             "range_m": self.config.range_m,
             "strategy": self.config.strategy,
             "frames": self.config.frames,
+            **({"failures": [{"robot": r, "at_s": t} for r, t in self.config.failures]} if self.config.failures else {}),
+            **({"speed_factors": {str(r): f for r, f in self.config.speed_factors}}
+               if self.config.speed_factors else {}),
             **({"spread_m": [self.config.spread_m, self.config.spread_max_m]} if self.config.spread_m > 0 else {}),
             "world": {"wheel_slip_frac": self.world.params.wheel_slip_frac,
                       "lidar_phase_us": self.world.params.lidar_phase_us},
@@ -248,6 +270,8 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                           body_m=world_params.robot_radius_m) if cfg.spread_m > 0
              else start_poses(occ, start, cfg.starts, cfg.robots))
     world = World(occ, poses, cfg.seed, world_params.with_slip_and_lidar_phase(cfg.wheel_slip_frac, cfg.lidar_phase_ms))
+    for i, factor in cfg.speed_factors:
+        world.set_speed_factor(i, factor)
     # Scored against the free area a robot body can reach from the starts (see reachable_free);
     # the figure against the raw 4-connected free component is reported too.
     reachable = reachable_from_starts(occ, poses, robot_radius_m=world_params.robot_radius_m)
@@ -371,14 +395,18 @@ def _pose_errors(world: World, agents: list[ExplorerAgent], own_origins: list[Po
     return out
 
 
-def _termination(agents: list[ExplorerAgent], interrupted: bool) -> str:
-    """"complete" when every robot stopped with no frontier left that its body could reach
-    in all it had mapped; "complete_with_unreachable_frontiers" when every robot stopped but
-    some gave up on such frontiers (its map showed a way, it failed to get there); else why
-    the mission was cut short. Frontiers behind gaps narrower than the body are counted
-    (narrow_gap_frontiers) but are no way on."""
-    if all(a.done for a in agents):
-        return "complete" if all(a.status == "complete" for a in agents) else "complete_with_unreachable_frontiers"
+def _termination(agents: list[ExplorerAgent], interrupted: bool, powered: list[bool]) -> str:
+    """"complete" when every robot that did not fail stopped with no frontier left that its
+    body could reach in all it had mapped; "complete_with_unreachable_frontiers" when every
+    such robot stopped but some gave up on such frontiers (its map showed a way, it failed
+    to get there); "all_failed" when no robot is left; else why the mission was cut short.
+    Frontiers behind gaps narrower than the body are counted (narrow_gap_frontiers) but are
+    no way on. A failed robot's own frontiers do not count: the team may not know them."""
+    left = [a for a, on in zip(agents, powered) if on]
+    if not left:
+        return "all_failed"
+    if all(a.done for a in left):
+        return "complete" if all(a.status == "complete" for a in left) else "complete_with_unreachable_frontiers"
     return "interrupted" if interrupted else "time_limit"
 
 
@@ -416,6 +444,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
     sample_pose_errors = False
     own_origins = [world.true_pose(i) for i in range(cfg.robots)] if cfg.frames == "own" else None
     interrupted = False
+    fail_at_us = {i: int(round(at_s * 1e6)) for i, at_s in cfg.failures}
     wall0 = time.perf_counter()
     while True:
         now = world.now_us
@@ -429,12 +458,17 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
                 observer(now, agents)
             next_sample_us += COVERAGE_SAMPLE_US
             sample_pose_errors = True
-        if all(a.settled for a in agents) or now >= max_us:
+        for i, at_us in fail_at_us.items():
+            if now >= at_us and world.powered(i):
+                world.power_off(i)
+        if all(a.settled or not world.powered(i) for i, a in enumerate(agents)) or now >= max_us:
             break
         if should_stop is not None and should_stop():
             interrupted = True
             break
-        for agent in agents:
+        for i, agent in enumerate(agents):
+            if not world.powered(i):
+                continue
             if profiler is not None:
                 profiler.enter("tick")
                 agent.tick(profiler)
@@ -480,7 +514,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         path_length_m=[float(world.path_length_m(i)) for i in range(cfg.robots)],
         t_total_s=world.now_us / 1e6,
         t_90_s=None if t_90_us is None else t_90_us / 1e6,
-        termination=_termination(agents, interrupted),
+        termination=_termination(agents, interrupted, [world.powered(i) for i in range(cfg.robots)]),
         wall_s=wall_s,
         sim_s=world.now_us / 1e6,
         ticks=ticks,
@@ -489,7 +523,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         longest_push_s=[round(world.longest_push_s(i), 3) for i in range(cfg.robots)],
         trajectory_sha256=digest.hexdigest(),
         reachable_area_m2=reachable_cells * occ.resolution_m ** 2,
-        robot_status=[a.status for a in agents],
+        robot_status=[a.status if world.powered(i) else "failed" for i, a in enumerate(agents)],
         trajectories=trajectories,
         world=world,
         agents=agents,

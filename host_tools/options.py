@@ -27,7 +27,7 @@ SIM_S_MAX = 86_400.0           # one simulated day: a trajectory point per robot
 RAY_CONNECT_TIMEOUT_S = 5.0
 
 KINDS = ("flag", "int", "float", "text", "choice", "out_dir", "out_file", "in_file", "map", "pose", "override",
-         "address", "scheme")
+         "address", "scheme", "robot_at", "robot_share")
 
 
 @dataclass(frozen=True)
@@ -132,6 +132,32 @@ def _pose(opt: Opt, text: str) -> tuple[float, float, float | None]:
     return (values[0], values[1], math.radians(values[2]) if len(values) == 3 else None)
 
 
+def _robot_and(text: str, sep: str, form: str) -> tuple[int, float]:
+    """(robot index, number) of 'R<sep>X', or ValueError saying what form was expected."""
+    robot, found, number = text.partition(sep)
+    try:
+        r, x = int(robot.strip(), 10), float(number)
+    except ValueError:
+        r, x = -1, math.nan
+    if not found or not 0 <= r < ROBOTS_MAX or not math.isfinite(x):
+        raise ValueError(f"{text!r}: expected {form}, R a robot index 0..{ROBOTS_MAX - 1}")
+    return r, x
+
+
+def _robot_at(opt: Opt, text: str) -> tuple[int, float]:
+    r, at_s = _robot_and(text, "@", "R@S (robot R, S seconds into the mission)")
+    if not 0.0 <= at_s <= SIM_S_MAX:
+        raise ValueError(f"{text!r}: S must be 0..{SIM_S_MAX:g} s")
+    return r, at_s
+
+
+def _robot_share(opt: Opt, text: str) -> tuple[int, float]:
+    r, share = _robot_and(text, "=", "R=F (robot R, a share F of the limits)")
+    if not 0.0 < share <= 1.0:
+        raise ValueError(f"{text!r}: F must be in (0, 1]")
+    return r, share
+
+
 def _scheme(opt: Opt, text: str) -> str:
     """A scheme spec (NAME[:VARIANT]) or alias, as given: aliases stay the names in reports."""
     from firmware.schemes import resolve
@@ -171,7 +197,7 @@ _PARSERS: dict[str, Callable[[Opt, str], Any]] = {
     "int": _number, "float": _number, "text": _text, "choice": _text,
     "out_dir": lambda o, t: check_out_dir(t), "out_file": lambda o, t: check_out_file(t),
     "in_file": lambda o, t: check_in_file(t), "map": _map, "pose": _pose, "override": _override,
-    "address": _address, "scheme": _scheme,
+    "address": _address, "scheme": _scheme, "robot_at": _robot_at, "robot_share": _robot_share,
 }
 
 
@@ -273,6 +299,10 @@ def check_spread(spread_m: float, spread_max_m: float) -> None:
         raise ValueError(f"--spread-max {spread_max_m:g} is below --spread {spread_m:g}")
 
 
+FAIL = Opt("--fail", "robot_at", "robot R fails S seconds into the mission: from then on it does nothing (no "
+           "driving, radio, UWB or WiFi) and the others go on; repeatable", repeat=True, metavar="R@S", dest="failures")
+SLOW = Opt("--slow", "robot_share", "robot R's drive reaches only the share F (0 < F <= 1) of the speed and turn-rate "
+           "limits; its firmware is not told; repeatable", repeat=True, metavar="R=F", dest="speed_factors")
 WHEEL_SLIP = Opt("--wheel-slip", "float", WHEEL_SLIP_HELP, lo=0.0, hi=1.0, default=0.0,
                  metavar="FRAC")
 LIDAR_PHASE = Opt("--lidar-phase-ms", "float", LIDAR_PHASE_HELP, unit="ms", lo=0.0, hi=99.999,

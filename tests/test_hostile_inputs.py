@@ -69,6 +69,10 @@ def bad_values(opt, root) -> list[str]:
                 "d_cam_m=nan", "presence_holds_target=maybe"]
     if k == "address":
         return [f"127.0.0.1:{_closed_port()}", "bad host!:1", "127.0.0.1:99999", ""]
+    if k == "robot_at":
+        return ["1", "a@5", "1@x", "-1@5", "64@5", "1@-1", "1@nan", "1@1e9", "@", ""]
+    if k == "robot_share":
+        return ["1", "a=0.5", "1=x", "-1=0.5", "64=0.5", "1=0", "1=1.5", "1=nan", "=", ""]
     if k == "text":
         return [""]
     assert k == "flag", k

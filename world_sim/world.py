@@ -157,6 +157,8 @@ class World:
         self.now_us = 0
         self._pose = poses
         self._cmd = np.zeros((n, 2), dtype=np.float64)
+        self._speed_factor = np.ones(n, dtype=np.float64)     # of the drive limits (a slow robot)
+        self._powered = np.ones(n, dtype=bool)                # False: the robot failed
         self._path_m = np.zeros(n, dtype=np.float64)
         self._blocked = np.zeros(n, dtype=np.int64)
         self._push_us = np.zeros(n, dtype=np.int64)          # the current run of blocked steps
@@ -199,9 +201,31 @@ class World:
         for name, value in (("v_mps", v_mps), ("omega_radps", omega_radps)):
             if not math.isfinite(value):
                 raise ValueError(f"drive command for robot {i}: {name} must be finite, got {value!r}")
+        if not self._powered[i]:
+            return                                   # a robot without power does not move
         p = self.params
-        self._cmd[i, 0] = min(max(float(v_mps), -p.max_v_mps), p.max_v_mps)
-        self._cmd[i, 1] = min(max(float(omega_radps), -p.max_omega_radps), p.max_omega_radps)
+        max_v, max_omega = p.max_v_mps * self._speed_factor[i], p.max_omega_radps * self._speed_factor[i]
+        self._cmd[i, 0] = min(max(float(v_mps), -max_v), max_v)
+        self._cmd[i, 1] = min(max(float(omega_radps), -max_omega), max_omega)
+
+    def set_speed_factor(self, i: int, factor: float) -> None:
+        """Robot i's drive reaches only this share (0 < factor <= 1) of the speed and turn
+        rate limits: a slower robot in a team (its firmware is not told)."""
+        i = self._check_index(i)
+        if not (math.isfinite(factor) and 0.0 < factor <= 1.0):
+            raise ValueError(f"speed factor of robot {i} must be in (0, 1], got {factor!r}")
+        self._speed_factor[i] = float(factor)
+        self.set_command(i, *self._cmd[i])
+
+    def power_off(self, i: int) -> None:
+        """Robot i fails: it stops where it is and for good, and its UWB and WiFi neither
+        measure nor answer (its LiDAR's cells were all seen from there already)."""
+        i = self._check_index(i)
+        self._cmd[i] = 0.0
+        self._powered[i] = False
+
+    def powered(self, i: int) -> bool:
+        return bool(self._powered[self._check_index(i)])
 
     def command(self, i: int) -> tuple[float, float]:
         i = self._check_index(i)
@@ -344,7 +368,7 @@ class World:
             ranges, measured = model.measure(d, wall_m, u, z)
             out = self._uwb[i]
             for j, r, ok in zip(peers.tolist(), ranges.tolist(), measured.tolist()):
-                if ok:
+                if ok and self._powered[i] and self._powered[j]:
                     out.append(UwbRange(stamp_us=self.now_us, peer_id=j, range_m=r))
             del out[:-MAX_PENDING_MEASUREMENTS]
 
@@ -361,7 +385,7 @@ class World:
             bearings, measured = model.measure(truth, d, wall_m, u, z)
             out = self._aoa[i]
             for j, b, ok in zip(peers.tolist(), bearings.tolist(), measured.tolist()):
-                if ok:
+                if ok and self._powered[i] and self._powered[j]:
                     out.append(AoaBearing(stamp_us=self.now_us, peer_id=j, bearing_rad=b))
             del out[:-MAX_PENDING_MEASUREMENTS]
 
