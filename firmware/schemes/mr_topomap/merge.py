@@ -352,17 +352,20 @@ class PairScores:
     profile, and between two merges most vertices were held before."""
 
     def __init__(self) -> None:
+        self._th: float | None = None
+        self._forget()
+
+    def _forget(self) -> None:
         self._anchors = np.zeros((0, desc.BINS), dtype=np.int64)      # unique code rows, sorted
         self._theirs = np.zeros((0, desc.BINS), dtype=np.int64)
-        self._th: float | None = None
         self._pairs = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))   # unique indices
 
     def scored(self, anchor_codes: np.ndarray, their_codes: np.ndarray, th: float) -> tuple[np.ndarray, ...]:
         """`_scored` of the centred codes, row indices into anchor_codes and their_codes."""
         ua, inv_a = _unique_rows(anchor_codes)
         ut, inv_t = _unique_rows(their_codes)
-        if th != self._th:
-            self._anchors, self._theirs = ua[:0], ut[:0]
+        if th != self._th:                               # scores held are for another threshold
+            self._forget()
         old_a = _row_lookup(self._anchors, ua)           # per new unique row: the old one, or -1
         old_t = _row_lookup(self._theirs, ut)
         # pairs between rows both held before: from the last call
