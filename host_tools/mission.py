@@ -12,7 +12,7 @@ import hashlib
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -39,6 +39,18 @@ from world_sim.ros_map import reachable_from_starts
 from world_sim.world import World, WorldParams
 
 COVERAGE_SAMPLE_US = 1_000_000
+
+
+class Failure(NamedTuple):
+    """A robot that fails (world_sim World.power_off): at a mission time, or when the team
+    has seen a share of the reachable area (checked once per simulated second)."""
+
+    robot: int
+    at_s: float | None = None
+    at_coverage: float | None = None
+
+    def describe(self) -> str:
+        return f"{self.robot}@{self.at_s:g}" if self.at_s is not None else f"{self.robot}@{self.at_coverage * 100:g}%"
 
 
 @dataclass(frozen=True)
@@ -76,25 +88,29 @@ class MissionConfig:
     # A hard radio range in metres on top of the profile (radio_sim.channel.Channel's
     # max_range_m: the ideal link's disc model); None: the profile's own reach.
     range_m: float | None = None
-    # Robots that fail (robot index, mission seconds): from then on the robot does nothing at
-    # all (world_sim World.power_off); the others go on. Robots with a slower drive (robot
-    # index, share of the speed and turn-rate limits in (0, 1]); their firmware is not told.
-    failures: tuple[tuple[int, float], ...] = ()
+    # Robots that fail: from then on the robot does nothing at all (world_sim World.power_off);
+    # the others go on. Robots with a slower drive (robot index, share of the speed and
+    # turn-rate limits in (0, 1]); their firmware is not told.
+    failures: tuple[Failure, ...] = ()
     speed_factors: tuple[tuple[int, float], ...] = ()
 
     def __post_init__(self) -> None:
         for name, pairs in (("failures (--fail)", self.failures), ("speed_factors (--slow)", self.speed_factors)):
-            robots = [r for r, _ in pairs]
+            robots = [pair[0] for pair in pairs]
             for r in robots:
                 if not 0 <= r < self.robots:
                     raise ValueError(f"{name}: robot {r} is not in the team of {self.robots} (--robots; robots 0.."
                                      f"{self.robots - 1})")
             if len(set(robots)) != len(robots):
                 raise ValueError(f"{name}: robot {sorted(r for r in robots if robots.count(r) > 1)[0]} given twice")
-        for r, at_s in self.failures:
-            if not 0.0 <= at_s <= self.max_sim_s:
-                raise ValueError(f"failures (--fail): robot {r} at {at_s:g} s is after the mission's end "
+        for f in self.failures:
+            if (f.at_s is None) == (f.at_coverage is None):
+                raise ValueError(f"failures (--fail): robot {f.robot} needs a time or a coverage, not both or neither")
+            if f.at_s is not None and not 0.0 <= f.at_s <= self.max_sim_s:
+                raise ValueError(f"failures (--fail): robot {f.robot} at {f.at_s:g} s is after the mission's end "
                                  f"(--max-sim-s {self.max_sim_s:g})")
+            if f.at_coverage is not None and not 0.0 < f.at_coverage <= 1.0:
+                raise ValueError(f"failures (--fail): robot {f.robot} at coverage {f.at_coverage:g}: must be in (0, 1]")
 
 
 @dataclass
@@ -132,6 +148,7 @@ class MissionResult:
     air_frames: list[AirFrame] = field(repr=False, default_factory=list)   # every transmission
     polygon_maps: dict | None = None     # schemes with polygon maps: host_tools.polygon_metrics.report
     frame_merges: dict | None = None     # schemes that merge frames: host_tools.merge_metrics
+    failed_at_s: dict[int, float] = field(default_factory=dict)   # robot -> when it failed (MissionConfig.failures)
 
     @property
     def sim_speedup(self) -> float:
@@ -155,7 +172,9 @@ class MissionResult:
             "range_m": self.config.range_m,
             "strategy": self.config.strategy,
             "frames": self.config.frames,
-            **({"failures": [{"robot": r, "at_s": t} for r, t in self.config.failures]} if self.config.failures else {}),
+            **({"failures": [{**{k: v for k, v in f._asdict().items() if v is not None},
+                              "failed_at_s": self.failed_at_s.get(f.robot)} for f in self.config.failures]}
+               if self.config.failures else {}),
             **({"speed_factors": {str(r): f for r, f in self.config.speed_factors}}
                if self.config.speed_factors else {}),
             **({"spread_m": [self.config.spread_m, self.config.spread_max_m]} if self.config.spread_m > 0 else {}),
@@ -444,7 +463,9 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
     sample_pose_errors = False
     own_origins = [world.true_pose(i) for i in range(cfg.robots)] if cfg.frames == "own" else None
     interrupted = False
-    fail_at_us = {i: int(round(at_s * 1e6)) for i, at_s in cfg.failures}
+    fail_at_us = {f.robot: int(round(f.at_s * 1e6)) for f in cfg.failures if f.at_s is not None}
+    fail_at_coverage = {f.robot: f.at_coverage for f in cfg.failures if f.at_coverage is not None}
+    failed_at_s: dict[int, float] = {}
     wall0 = time.perf_counter()
     while True:
         now = world.now_us
@@ -458,9 +479,11 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
                 observer(now, agents)
             next_sample_us += COVERAGE_SAMPLE_US
             sample_pose_errors = True
-        for i, at_us in fail_at_us.items():
-            if now >= at_us and world.powered(i):
+        for i in range(cfg.robots):
+            if world.powered(i) and ((i in fail_at_us and now >= fail_at_us[i])
+                                     or (i in fail_at_coverage and coverage >= fail_at_coverage[i])):
                 world.power_off(i)
+                failed_at_s[i] = now / 1e6
         if all(a.settled or not world.powered(i) for i, a in enumerate(agents)) or now >= max_us:
             break
         if should_stop is not None and should_stop():
@@ -524,6 +547,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         trajectory_sha256=digest.hexdigest(),
         reachable_area_m2=reachable_cells * occ.resolution_m ** 2,
         robot_status=[a.status if world.powered(i) else "failed" for i, a in enumerate(agents)],
+        failed_at_s=failed_at_s,
         trajectories=trajectories,
         world=world,
         agents=agents,

@@ -144,11 +144,20 @@ def _robot_and(text: str, sep: str, form: str) -> tuple[int, float]:
     return r, x
 
 
-def _robot_at(opt: Opt, text: str) -> tuple[int, float]:
-    r, at_s = _robot_and(text, "@", "R@S (robot R, S seconds into the mission)")
+def _robot_at(opt: Opt, text: str):
+    """R@S or R@P%: a host_tools.mission.Failure."""
+    from host_tools.mission import Failure
+
+    form = "R@S or R@P% (robot R, S seconds into the mission or when the team has seen P % of the area)"
+    if text.endswith("%"):
+        r, share = _robot_and(text[:-1], "@", form)
+        if not 0.0 < share <= 100.0:
+            raise ValueError(f"{text!r}: P must be in (0, 100]")
+        return Failure(r, at_coverage=share / 100.0)
+    r, at_s = _robot_and(text, "@", form)
     if not 0.0 <= at_s <= SIM_S_MAX:
         raise ValueError(f"{text!r}: S must be 0..{SIM_S_MAX:g} s")
-    return r, at_s
+    return Failure(r, at_s=at_s)
 
 
 def _robot_share(opt: Opt, text: str) -> tuple[int, float]:
@@ -299,8 +308,9 @@ def check_spread(spread_m: float, spread_max_m: float) -> None:
         raise ValueError(f"--spread-max {spread_max_m:g} is below --spread {spread_m:g}")
 
 
-FAIL = Opt("--fail", "robot_at", "robot R fails S seconds into the mission: from then on it does nothing (no "
-           "driving, radio, UWB or WiFi) and the others go on; repeatable", repeat=True, metavar="R@S", dest="failures")
+FAIL = Opt("--fail", "robot_at", "robot R fails S seconds into the mission (R@S) or once the team has seen P % of the "
+           "reachable area (R@P%): from then on it does nothing (no driving, radio, UWB or WiFi) and the others go "
+           "on; repeatable", repeat=True, metavar="R@S|R@P%", dest="failures")
 SLOW = Opt("--slow", "robot_share", "robot R's drive reaches only the share F (0 < F <= 1) of the speed and turn-rate "
            "limits; its firmware is not told; repeatable", repeat=True, metavar="R=F", dest="speed_factors")
 WHEEL_SLIP = Opt("--wheel-slip", "float", WHEEL_SLIP_HELP, lo=0.0, hi=1.0, default=0.0,

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from host_tools.mission import MissionConfig, run_mission
+from host_tools.mission import Failure, MissionConfig, run_mission
 from world_sim.occupancy_map import OccupancyMap
 from world_sim.world import World, WorldParams
 
@@ -89,7 +89,7 @@ def test_a_speed_factor_outside_0_1_is_refused(factor):
 
 def test_a_mission_goes_on_without_a_failed_robot_and_says_so():
     cfg = MissionConfig(map_spec="cave:3:30x30", robots=3, seed=0, max_sim_s=900.0, strategy="minpos",
-                        failures=((1, 30.0),), speed_factors=((2, 0.5),))
+                        failures=(Failure(1, at_s=30.0),), speed_factors=((2, 0.5),))
     r = run_mission(cfg)
     stop = int(30.0 * 1e6 / TICK_US)
     track = r.trajectories[1]
@@ -100,12 +100,22 @@ def test_a_mission_goes_on_without_a_failed_robot_and_says_so():
     last_sent_by_1 = max(f.start_us for f in r.air_frames if f.sender_id == 1)
     assert last_sent_by_1 < 30_000_000
     doc = json.loads(json.dumps(r.to_json()))
-    assert doc["failures"] == [{"robot": 1, "at_s": 30.0}] and doc["speed_factors"] == {"2": 0.5}
+    assert doc["failures"] == [{"robot": 1, "at_s": 30.0, "failed_at_s": 30.0}] and doc["speed_factors"] == {"2": 0.5}
+
+
+def test_a_robot_fails_once_the_team_has_seen_the_share_given():
+    cfg = MissionConfig(map_spec="cave:3:30x30", robots=2, seed=0, max_sim_s=600.0, failures=(Failure(0, at_coverage=0.5),))
+    samples = []
+    r = run_mission(cfg, progress=lambda sim_s, coverage: samples.append((sim_s, coverage)))
+    at = r.failed_at_s[0]
+    assert at == next(t for t, c in samples if c >= 0.5) and samples[0][1] < 0.5
+    assert r.robot_status[0] == "failed" and at < r.t_total_s
+    assert r.to_json()["failures"] == [{"robot": 0, "at_coverage": 0.5, "failed_at_s": at}]
 
 
 def test_a_team_that_all_failed_ends_there():
     r = run_mission(MissionConfig(map_spec="cave:3:30x30", robots=2, seed=0, max_sim_s=600.0,
-                                  failures=((0, 10.0), (1, 12.5))))
+                                  failures=(Failure(0, at_s=10.0), Failure(1, at_s=12.5))))
     assert r.termination == "all_failed" and r.robot_status == ["failed", "failed"]
     assert r.t_total_s == pytest.approx(12.5)
 
@@ -115,6 +125,7 @@ def test_a_team_that_all_failed_ends_there():
     (["--robots", "3", "--slow", "5=0.5"], "robot 5 is not in the team of 3 (--robots"),
     (["--robots", "3", "--fail", "1@10", "--fail", "1@20"], "robot 1 given twice"),
     (["--robots", "2", "--max-sim-s", "60", "--fail", "0@61"], "after the mission's end (--max-sim-s 60)"),
+    (["--robots", "2", "--fail", "0@120%"], "P must be in (0, 100]"),
 ])
 def test_failures_and_slow_robots_outside_the_team_or_the_mission_are_refused_before_it_runs(cli, argv, says):
     res = cli("run", "--map", "cave:3:30x30", *argv)

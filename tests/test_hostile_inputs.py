@@ -70,7 +70,7 @@ def bad_values(opt, root) -> list[str]:
     if k == "address":
         return [f"127.0.0.1:{_closed_port()}", "bad host!:1", "127.0.0.1:99999", ""]
     if k == "robot_at":
-        return ["1", "a@5", "1@x", "-1@5", "64@5", "1@-1", "1@nan", "1@1e9", "@", ""]
+        return ["1", "a@5", "1@x", "-1@5", "64@5", "1@-1", "1@nan", "1@1e9", "@", "", "1@0%", "1@101%", "1@x%", "1%"]
     if k == "robot_share":
         return ["1", "a=0.5", "1=x", "-1=0.5", "64=0.5", "1=0", "1=1.5", "1=nan", "=", ""]
     if k == "text":
