@@ -11,8 +11,9 @@ import sys
 import threading
 from pathlib import Path
 
-from host_tools.options import (FRAMES, LIDAR_PHASE, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEMES, SEED_MAX, SET,
-                                SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread, with_default)
+from host_tools.options import (FAIL, FRAMES, LIDAR_PHASE, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEMES, SEED_MAX,
+                                SET, SLOW, SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread,
+                                with_default)
 from host_tools.overrides import combine_overrides, params_help
 from host_tools.progress import progress_bar
 from host_tools.safe_io import strict_dumps, write_text
@@ -33,7 +34,7 @@ OPTIONS = (
     Opt("--also-radio", "choice", "repeat the trials of the strategies that use the LoRa link (greedy, minpos) on "
         "these profiles and tabulate what they cost against --radio", nargs="+", choices=RADIO.choices, default=[],
         metavar="PROFILE"),
-    RANGE_M, FRAMES, SPREAD, SPREAD_MAX, MAX_SIM_S, WHEEL_SLIP, LIDAR_PHASE, SET,
+    RANGE_M, FRAMES, SPREAD, SPREAD_MAX, MAX_SIM_S, WHEEL_SLIP, LIDAR_PHASE, FAIL, SLOW, SET,
     Opt("--jobs", "int", "local worker processes", lo=1, hi=256, default=os.cpu_count() or 1),
     Opt("--ray", "address", "run on a Ray cluster instead: 'local' starts one here, 'auto' finds one, or "
         "HOST:PORT (refused at once if nothing answers there)", metavar="ADDRESS"),
@@ -101,14 +102,14 @@ def main(args: argparse.Namespace) -> int:
         if args.tables_of_code is not None and not re.fullmatch(r"[0-9a-fA-F]{8,64}", args.tables_of_code):
             raise ValueError(f"--tables-of-code {args.tables_of_code!r}: needs at least 8 hex digits of a "
                              "fingerprint (code_sha256)")
+        spec = SweepSpec(tuple(args.maps), tuple(args.strategies), args.robots, args.seeds, args.radio,
+                         args.max_sim_s, args.first_seed, tuple(r for r in args.also_radio if r != args.radio),
+                         overrides, args.wheel_slip, args.lidar_phase_ms, args.range_m, args.frames, args.spread,
+                         args.spread_max, tuple(args.failures), tuple(args.speed_factors))
+        trials = spec.trials()
     except ValueError as exc:
         print(f"lorascout sweep: {exc}", file=sys.stderr)
         return 2
-    spec = SweepSpec(tuple(args.maps), tuple(args.strategies), args.robots, args.seeds, args.radio,
-                     args.max_sim_s, args.first_seed, tuple(r for r in args.also_radio if r != args.radio),
-                     overrides, args.wheel_slip, args.lidar_phase_ms, args.range_m, args.frames, args.spread,
-                     args.spread_max)
-    trials = spec.trials()
     wanted = {trial_key(c, overrides) for c in trials}
     if args.tables_of_code is not None:
         return _tabulate_earlier(args.out, spec, wanted, args.tables_of_code)

@@ -22,7 +22,7 @@ from firmware.comms.frame import frame_size_bytes
 from firmware.schemes.dense_baseline.keyframes import keyframe_bytes
 from firmware.params import ExplorationParams
 from firmware.schemes import build as build_scheme
-from host_tools.mission import MissionConfig, run_mission
+from host_tools.mission import Failure, MissionConfig, run_mission
 from host_tools.overrides import Overrides, describe, params_with
 from host_tools.safe_io import atomic_open, atomic_path, strict_dumps, write_text
 
@@ -56,6 +56,9 @@ class SweepSpec:
     frames: str = "shared"
     spread_m: float = 0.0
     spread_max_m: float = 0.0
+    # Robots that fail and slower robots in every trial (MissionConfig's fields).
+    failures: tuple[Failure, ...] = ()
+    speed_factors: tuple[tuple[int, float], ...] = ()
 
     def lora_strategies(self) -> tuple[str, ...]:
         return tuple(s for s in self.strategies if "radio" in build_scheme(s).needs_of() and "mesh" not in build_scheme(s).needs_of())
@@ -66,7 +69,8 @@ class SweepSpec:
         return [MissionConfig(map_spec=m, robots=self.robots, seed=self.first_seed + k, max_sim_s=self.max_sim_s,
                               radio=radio, strategy=s, wheel_slip_frac=self.wheel_slip_frac,
                               lidar_phase_ms=self.lidar_phase_ms, range_m=self.range_m, frames=self.frames,
-                              spread_m=self.spread_m, spread_max_m=self.spread_max_m)
+                              spread_m=self.spread_m, spread_max_m=self.spread_max_m, failures=self.failures,
+                              speed_factors=self.speed_factors)
                 for radio, s in grid for m in self.maps for k in range(self.seeds)]
 
 
@@ -125,14 +129,17 @@ def trial_key(cfg_or_report: MissionConfig | dict, overrides: Overrides = ()) ->
         return (c.map_spec, c.strategy, c.radio, c.seed, c.robots, float(c.max_sim_s), tuple(overrides),
                 float(c.wheel_slip_frac), round(c.lidar_phase_ms * 1000),
                 None if c.range_m is None else float(c.range_m), c.frames,
-                (float(c.spread_m), float(c.spread_max_m)) if c.spread_m > 0 else None)
+                (float(c.spread_m), float(c.spread_max_m)) if c.spread_m > 0 else None,
+                tuple(sorted(tuple(f) for f in c.failures)), tuple(sorted((int(r), float(x)) for r, x in c.speed_factors)))
     r = cfg_or_report
     world = r.get("world", {})
     spread = r.get("spread_m")
     return (r["map_spec"], r["strategy"], r["radio"], r["seed"], r["robots"], float(r["max_sim_s"]),
             tuple(sorted(r.get("params_overrides", {}).items())), float(world.get("wheel_slip_frac", 0.0)),
             int(world.get("lidar_phase_us", 0)), None if r.get("range_m") is None else float(r["range_m"]),
-            r.get("frames", "shared"), None if spread is None else (float(spread[0]), float(spread[1])))
+            r.get("frames", "shared"), None if spread is None else (float(spread[0]), float(spread[1])),
+            tuple(sorted((f["robot"], f.get("at_s"), f.get("at_coverage")) for f in r.get("failures", []))),
+            tuple(sorted((int(k), float(v)) for k, v in r.get("speed_factors", {}).items())))
 
 
 def coverage_floor(coverage: float) -> float:
@@ -334,6 +341,10 @@ def _world_changed(spec: dict) -> str:
     if spec.get("spread_m"):
         parts.append(f"starts spread at least {spec['spread_m']:g} m apart"
                      + (f", at most {spec['spread_max_m']:g} m from the nearest" if spec.get("spread_max_m") else ""))
+    for robot, at_s, at_coverage in spec.get("failures", ()):
+        parts.append(f"robot {robot} fails " + (f"at {at_s:g} s" if at_s is not None else f"at {at_coverage:.0%} seen"))
+    for robot, share in spec.get("speed_factors", ()):
+        parts.append(f"robot {robot} at {share:g} of the speed")
     return ", ".join(parts)
 
 

@@ -239,3 +239,22 @@ def test_a_sweep_refuses_a_spread_bound_below_the_spread(tmp_path, capsys):
                      "--spread", "10", "--spread-max", "5"]) == 2
     assert "--spread-max 5 is below --spread 10" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
+
+
+def test_a_sweep_with_a_failing_and_a_slow_robot_runs_them_and_resumes_only_those(tmp_path, capsys):
+    argv = ["sweep", "--maps", "cave:3:30x30", "--strategies", "independent", "--robots", "3", "--seeds", "1",
+            "--max-sim-s", "20", "--jobs", "1", "--quiet", "--out", str(tmp_path), "--resume"]
+    changed = ["--fail", "1@5", "--fail", "2@50%", "--slow", "0=0.5"]
+    assert cli_main(argv + changed) == 0
+    out, _ = capsys.readouterr()
+    assert "robot 1 fails at 5 s, robot 2 fails at 50% seen, robot 0 at 0.5 of the speed" in out
+    (report,) = [json.loads(line) for line in (tmp_path / PARTIAL_NAME).read_text().splitlines()]
+    assert report["robot_status"][1] == "failed" and report["failures"][0] == {"robot": 1, "at_s": 5.0,
+                                                                              "failed_at_s": 5.0}
+    assert report["speed_factors"] == {"0": 0.5}
+    assert cli_main(argv) == 0                                   # no failure: another trial
+    assert "resuming: 0 trials done earlier, 1 to run" in capsys.readouterr().err
+    assert cli_main(argv + ["--slow", "0=0.5", "--fail", "2@50%", "--fail", "1@5"]) == 0    # the same, reordered
+    assert "resuming: 1 trials done earlier, 0 to run" in capsys.readouterr().err
+    assert cli_main(argv + ["--fail", "3@5"]) == 2
+    assert "robot 3 is not in the team of 3" in capsys.readouterr().err
