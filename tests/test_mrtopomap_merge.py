@@ -9,6 +9,7 @@ puts a teammate's vertices in the own walls.
 Scans, maps and frames come from world_sim (tests/test_mrtopomap_world.py)."""
 from __future__ import annotations
 
+import json
 import math
 import random
 
@@ -290,3 +291,19 @@ def test_grid_scores_kept_between_calls_give_the_same_hypotheses(seed):
         assert len(fresh) > 0
         for name in fresh._fields:
             assert np.array_equal(getattr(again, name), getattr(fresh, name)), name
+
+
+def test_the_merge_rates_tool_tabulates_its_draws(tmp_path, capsys):
+    """tests/mrtopomap_merge_rates.py, the README's static draws: a row per draw, a table by
+    map and areas, a clear refusal of an unknown parameter."""
+    from tests import mrtopomap_merge_rates as rates
+
+    out_file = tmp_path / "draws.jsonl"
+    assert rates.main(["--draws", "2", "--json", str(out_file)]) == 0
+    rows = [json.loads(line) for line in out_file.read_text().splitlines()]
+    assert [r["map"] for r in rows] == ["cave:1:60x60", "intel.yaml"] and all(r["mode"] == "half" for r in rows)
+    table = capsys.readouterr().out
+    merged_right = sum(1 for r in rows[:1] if r["merged"] and r["right"])
+    assert f"| cave:1:60x60 | half | 1 | {merged_right} |" in table
+    with pytest.raises(SystemExit, match="no_such_field"):
+        rates.main(["--draws", "1", "--set", "no_such_field=1"])
