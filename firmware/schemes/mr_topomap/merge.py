@@ -100,7 +100,6 @@ from typing import NamedTuple
 
 import numpy as np
 import scipy.ndimage as ndimage
-from scipy import special
 from scipy.spatial import cKDTree
 
 from firmware.kernels import FREE, OCCUPIED
@@ -575,7 +574,29 @@ def chance_clusters(n_hypotheses: int, support: int, free_area_m2: float, params
     if support <= 1 or free_area_m2 <= 0.0:
         return float(n_hypotheses)
     p_agree = math.pi * params.inlier_m ** 2 / free_area_m2 * (2.0 * params.inlier_rad / (2.0 * math.pi))
-    return float(n_hypotheses * special.gammainc(support - 1, min(1.0, p_agree) * n_hypotheses))
+    return n_hypotheses * poisson_tail(support - 1, min(1.0, p_agree) * n_hypotheses)
+
+
+def poisson_tail(k: int, mean: float) -> float:
+    """P(X >= k) for X ~ Poisson(mean). Above the mean the tail is summed from the k-th term
+    up (precise where it is tiny, which is where it matters here); at or below the mean it
+    is one minus the terms below k (then it is at least about a half)."""
+    if k <= 0:
+        return 1.0
+    if mean <= 0.0:
+        return 0.0
+
+    def term(i: int) -> float:
+        return math.exp(i * math.log(mean) - mean - math.lgamma(i + 1))
+
+    if k <= mean:
+        return max(0.0, 1.0 - math.fsum(term(i) for i in range(k)))
+    t, total, i = term(k), 0.0, k
+    while t > 1e-17 * total:
+        total += t
+        i += 1
+        t *= mean / i
+    return min(1.0, total)
 
 
 def _consistent_pairs(h: Hypotheses, params: MrTopoParams) -> tuple[np.ndarray, np.ndarray]:
