@@ -90,7 +90,7 @@ def _to_world(xy: np.ndarray, pose) -> np.ndarray:
 
 def _draw_paths(ax, occ, trial: dict, legend: bool) -> None:
     _background(ax, occ)
-    for i, xy in enumerate(trial["paths_xy"]):
+    for i, xy in enumerate(trial.get("paths_xy", [])):     # none kept: the map alone
         xy = np.asarray(xy).reshape(-1, 2)
         c = ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
         ax.plot(xy[:, 0], xy[:, 1], color=c, lw=1.0 if legend else 0.6,
@@ -98,7 +98,7 @@ def _draw_paths(ax, occ, trial: dict, legend: bool) -> None:
         if len(xy):
             ax.plot(xy[0, 0], xy[0, 1], "o", color=c, ms=4 if legend else 2)
     if legend:
-        _legend(ax, len(trial["paths_xy"]), 7)
+        _legend(ax, len(trial.get("paths_xy", [])), 7)
 
 
 def plot_sweep_paths(occ, label: str, trial: dict, path: Path) -> None:

@@ -550,7 +550,8 @@ def save(out: Path, spec: SweepSpec, results: list[dict], interrupted: str | Non
         firsts, by_strategy = [], {}
         for s in spec.strategies:
             trials = [r for r in results if r["map_spec"] == m and r["strategy"] == s and r["radio"] == spec.radio]
-            first = min(trials, key=lambda r: r["seed"])
+            # Trials resumed from a trials.jsonl have no paths (it leaves them out): draw one that has.
+            first = min(trials, key=lambda r: ("paths_xy" not in r, r["seed"]))
             firsts.append(first)
             by_strategy[s] = [max(r["path_length_m"]) for r in trials]
             with atomic_path(out / f"paths_{Path(first['map']).stem.replace(':', '_')}_{s}.png") as tmp:

@@ -258,3 +258,19 @@ def test_a_sweep_with_a_failing_and_a_slow_robot_runs_them_and_resumes_only_thos
     assert "resuming: 1 trials done earlier, 0 to run" in capsys.readouterr().err
     assert cli_main(argv + ["--fail", "3@5"]) == 2
     assert "robot 3 is not in the team of 3" in capsys.readouterr().err
+
+
+def test_a_sweep_resumed_from_a_trials_file_without_paths_draws_its_figures(tmp_path, capsys):
+    """trials.jsonl leaves the paths out; a grid resumed from it (as docs/ folders keep trials)
+    finishes, drawing each figure from a trial that has its paths, or the map alone."""
+    first, second = tmp_path / "first", tmp_path / "second"
+    argv = ["sweep", "--maps", "cave:4:20x20", "--strategies", "independent", "--robots", "1",
+            "--max-sim-s", "10", "--jobs", "1", "--quiet"]
+    assert cli_main(argv + ["--seeds", "1", "--out", str(first)]) == 0
+    second.mkdir()
+    (second / PARTIAL_NAME).write_text((first / "trials.jsonl").read_text())
+    assert cli_main(argv + ["--seeds", "2", "--out", str(second), "--resume"]) == 0
+    assert "resuming: 1 trials done earlier, 1 to run" in capsys.readouterr().err
+    assert (second / "paths_overview.png").stat().st_size > 0
+    assert cli_main(argv + ["--seeds", "1", "--out", str(second), "--tables-of-code",
+                            json.loads((first / "trials.jsonl").read_text())["code_sha256"][:12]]) == 0
