@@ -49,9 +49,6 @@ class Failure(NamedTuple):
     at_s: float | None = None
     at_coverage: float | None = None
 
-    def describe(self) -> str:
-        return f"{self.robot}@{self.at_s:g}" if self.at_s is not None else f"{self.robot}@{self.at_coverage * 100:g}%"
-
 
 @dataclass(frozen=True)
 class MissionConfig:

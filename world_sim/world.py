@@ -219,7 +219,8 @@ class World:
 
     def power_off(self, i: int) -> None:
         """Robot i fails: it stops where it is and for good, and its UWB and WiFi neither
-        measure nor answer (its LiDAR's cells were all seen from there already)."""
+        measure nor answer. Its LiDAR's scans go on but nobody reads them; they mark what is
+        seen from where it stopped, little if anything beyond its last scan before."""
         i = self._check_index(i)
         self._cmd[i] = 0.0
         self._powered[i] = False
