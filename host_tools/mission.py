@@ -411,6 +411,10 @@ def _pose_errors(world: World, agents: list[ExplorerAgent], own_origins: list[Po
     return out
 
 
+def _failure_due(f: Failure, now_us: int, coverage: float) -> bool:
+    return now_us >= int(round(f.at_s * 1e6)) if f.at_s is not None else coverage >= f.at_coverage
+
+
 def _termination(agents: list[ExplorerAgent], interrupted: bool, powered: list[bool]) -> str:
     """"complete" when every robot that did not fail stopped with no frontier left that its
     body could reach in all it had mapped; "complete_with_unreachable_frontiers" when every
@@ -460,8 +464,8 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
     sample_pose_errors = False
     own_origins = [world.true_pose(i) for i in range(cfg.robots)] if cfg.frames == "own" else None
     interrupted = False
-    fail_at_us = {f.robot: int(round(f.at_s * 1e6)) for f in cfg.failures if f.at_s is not None}
-    fail_at_coverage = {f.robot: f.at_coverage for f in cfg.failures if f.at_coverage is not None}
+    pending = {f.robot: f for f in cfg.failures}          # failures still to come
+    running = [True] * cfg.robots                          # False: the robot failed
     failed_at_s: dict[int, float] = {}
     wall0 = time.perf_counter()
     while True:
@@ -476,18 +480,18 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
                 observer(now, agents)
             next_sample_us += COVERAGE_SAMPLE_US
             sample_pose_errors = True
-        for i in range(cfg.robots):
-            if world.powered(i) and ((i in fail_at_us and now >= fail_at_us[i])
-                                     or (i in fail_at_coverage and coverage >= fail_at_coverage[i])):
-                world.power_off(i)
-                failed_at_s[i] = now / 1e6
-        if all(a.settled or not world.powered(i) for i, a in enumerate(agents)) or now >= max_us:
+        for i in [i for i, f in pending.items() if _failure_due(f, now, coverage)]:
+            world.power_off(i)
+            running[i] = False
+            failed_at_s[i] = now / 1e6
+            del pending[i]
+        if all(a.settled or not on for a, on in zip(agents, running)) or now >= max_us:
             break
         if should_stop is not None and should_stop():
             interrupted = True
             break
-        for i, agent in enumerate(agents):
-            if not world.powered(i):
+        for agent, on in zip(agents, running):
+            if not on:
                 continue
             if profiler is not None:
                 profiler.enter("tick")
@@ -534,7 +538,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         path_length_m=[float(world.path_length_m(i)) for i in range(cfg.robots)],
         t_total_s=world.now_us / 1e6,
         t_90_s=None if t_90_us is None else t_90_us / 1e6,
-        termination=_termination(agents, interrupted, [world.powered(i) for i in range(cfg.robots)]),
+        termination=_termination(agents, interrupted, running),
         wall_s=wall_s,
         sim_s=world.now_us / 1e6,
         ticks=ticks,
@@ -543,7 +547,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         longest_push_s=[round(world.longest_push_s(i), 3) for i in range(cfg.robots)],
         trajectory_sha256=digest.hexdigest(),
         reachable_area_m2=reachable_cells * occ.resolution_m ** 2,
-        robot_status=[a.status if world.powered(i) else "failed" for i, a in enumerate(agents)],
+        robot_status=[a.status if on else "failed" for a, on in zip(agents, running)],
         failed_at_s=failed_at_s,
         trajectories=trajectories,
         world=world,
