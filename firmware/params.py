@@ -229,20 +229,6 @@ class ExplorationParams:
                                       "within a category, waypoints are ordered by e_bit / (cost + this)")
     pereira_by_cost: bool = _p(False, 'bool', None, None,
                                'within a category, the cheapest waypoint first (the ablation of the spec)')
-    # MR-TopoMap (firmware.schemes.mr_topomap; ../shared/schemes/mrtopomap.md sections 2, 4
-    # and 5). The descriptor, direction and merge geometry stay in
-    # firmware/schemes/mr_topomap/params.py; these are the knobs the spec names (th_merge,
-    # d_vertex, eq. 1's w) and the merge's schedule.
-    mrtopo_th_merge: float = _p(0.95, '1', 0.5, 1.0,
-                                'a descriptor pair scoring this much is a merge hypothesis (the profile grid 0.04 less)')
-    mrtopo_d_vertex_m: float = _p(2.5, 'm', 0.5, 50.0, 'a new vertex only this far from every vertex held (Algorithm 1)')
-    mrtopo_w: float = _p(0.5, '1', 0.0, 1.0, "eq. (1)'s weight of the own vertices' centre against merged teammates'")
-    mrtopo_merge_period_s: float = _p(5.0, 's', 0.5, 3600.0, "teammates' frames are estimated again this often (if "
-                                      "their records or the own map changed)")
-    mrtopo_grid_period_s: float = _p(20.0, 's', 1.0, 3600.0, "the own map's profile grid is rendered again this often")
-    mrtopo_team_near_m: float = _p(3.0, 'm', 0.0, 100.0, "an own waypoint this close to a merged teammate's vertex (in "
-                                   "line of sight, no open direction near) is left to the team (0: never)")
-
     @property
     def entropy_per_cell_bit(self) -> float:
         """log2(a + 1): one cell's prior entropy over 'no artifact or one of a types' (eq. 3)."""

@@ -9,7 +9,8 @@ import threading
 from host_tools.mission import MissionConfig, run_mission
 from host_tools.options import (FAIL, FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEME,
                                 SEED, SET, SLOW, SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread)
-from host_tools.overrides import combine_overrides, describe, params_help, params_with
+from host_tools.overrides import (check_schemes_used, combine_overrides, describe, params_help, params_with,
+                                  scheme_settings)
 from host_tools.progress import progress_bar
 from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, strict_dumps, write_text
 
@@ -45,6 +46,7 @@ def main(args: argparse.Namespace) -> int:
     # Everything that can be refused is refused before the mission starts.
     try:
         overrides = combine_overrides(args.overrides)
+        check_schemes_used(overrides, [args.strategy], "--scheme")
         if args.spread and args.start:
             raise ValueError("--spread places every robot: give it or --start, not both")
         check_spread(args.spread, args.spread_max)
@@ -80,7 +82,7 @@ def main(args: argparse.Namespace) -> int:
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, on_sigint) if in_main_thread else None
     try:
-        result = run_mission(cfg, progress, params=params_with(overrides),
+        result = run_mission(cfg, progress, params=params_with(overrides), scheme_settings=scheme_settings(overrides),
                              should_stop=lambda: state["stop"])
     except (ValueError, KeyError, OSError) as exc:
         bar.close()

@@ -14,7 +14,7 @@ from pathlib import Path
 from host_tools.options import (FAIL, FRAMES, LIDAR_PHASE, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEMES, SEED_MAX,
                                 SET, SLOW, SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread,
                                 with_default)
-from host_tools.overrides import combine_overrides, params_help
+from host_tools.overrides import check_schemes_used, combine_overrides, params_help
 from host_tools.progress import progress_bar
 from host_tools.safe_io import strict_dumps, write_text
 from host_tools.sweep import (PARTIAL_NAME, WRITTEN, SweepSpec, code_fingerprint, load_partial, markdown, probe_ray,
@@ -92,6 +92,7 @@ def main(args: argparse.Namespace) -> int:
     # Everything that can be refused is refused before any file is touched or trial run.
     try:
         overrides = combine_overrides(args.overrides)
+        check_schemes_used(overrides, args.strategies, "--schemes")
         last_seed = args.first_seed + args.seeds - 1
         if last_seed > SEED_MAX:
             raise ValueError(f"--first-seed {args.first_seed} with --seeds {args.seeds} reaches seed {last_seed}; "

@@ -21,7 +21,7 @@ from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import TaskProfiler
 from firmware.services.deployment import Deployment
 from firmware.services.planner import FrontiersLeft
-from firmware.schemes import build as build_scheme
+from firmware.schemes import Settings, build as build_scheme
 from hal.lora import profile as radio_profile
 from hal.sim.clock import SimClock
 from hal.sim.factory import build_sim_hal
@@ -268,6 +268,7 @@ def radio_metrics(air_frames: list[AirFrame], channel: Channel, agents: list, me
 def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | None = None,
                 profiler: TaskProfiler | None = None,
                 params: ExplorationParams = ExplorationParams(),
+                scheme_settings: Settings = (),
                 rates: TaskRates = TaskRates(),
                 world_params: WorldParams = WorldParams(),
                 should_stop: Callable[[], bool] | None = None,
@@ -275,7 +276,8 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
                 observer: Callable[[int, list[ExplorerAgent]], None] | None = None) -> MissionResult:
     """One mission to completion, the time limit, or until `should_stop()` (asked once per
     tick) says so: then it ends there, with termination "interrupted", and the result holds
-    everything up to that tick. world_params: the simulated world's physics, with the
+    everything up to that tick. scheme_settings: the scheme's own parameters changed
+    (`--set SCHEME.NAME=VALUE`, firmware.schemes.build). world_params: the simulated world's physics, with the
     wheels' slip and the LiDAR's phase taken from cfg. loss_rule (radio_sim.channel.Channel) loses chosen
     receptions; observer is called with the mission time and the agents once per simulated
     second (tests)."""
@@ -317,7 +319,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
         agents = []
         doorways = None         # the ground truth's, for schemes that load a region map
         for i in range(cfg.robots):
-            scheme = build_scheme(cfg.strategy)
+            scheme = build_scheme(cfg.strategy, scheme_settings)
             if "region_map" in scheme.needs_of():
                 if doorways is None:
                     doorways = region_oracle.doorways(occ, params)

@@ -2,6 +2,7 @@
 
     [robot]      id, team_size, scheme, radio_profile          (ROBOT_SETTINGS)
     [params]     explorer parameters, as `--set` takes them    (firmware/params.py)
+    [params.S]   scheme S's own parameters (`--set S.NAME=VALUE`; firmware/declared.py)
     [world]      the simulated world, when a backend is "sim"  (hal.sim.realtime_world)
     [clock] [lidar] [odometry] [drive] [radio] [uwb] [aoa] [mesh]
                  backend = NAME (hal.registry), and that backend's settings (its SETTINGS)
@@ -31,7 +32,7 @@ from hal.config import BuildContext, ConfigError, Setting, check_settings
 from hal.lora import PROFILES
 from hal.registry import BACKENDS, backend_class, build_backend, check_backend
 from host_tools.options import ROBOTS_MAX
-from host_tools.overrides import Overrides, overrides_from_table, params_with
+from host_tools.overrides import Overrides, check_schemes_used, overrides_from_table, params_with, scheme_settings
 
 # Built in this order: the clock first, because backends stamp samples with it.
 PERIPHERALS = ("clock", "lidar", "odometry", "drive", "radio", "uwb", "aoa", "mesh")
@@ -113,6 +114,7 @@ def load_robot_config(path: str | Path) -> RobotConfig:
     cfg = RobotConfig(path=where, robot_id=robot["id"], team_size=robot["team_size"], scheme=robot["scheme"],
                       radio_profile=robot.get("radio_profile"), overrides=overrides, world=world,
                       peripherals=peripherals)
+    _in_table(where, "params", lambda: check_schemes_used(overrides, [cfg.scheme], "[robot] scheme =", given_as=""))
     _check_resources(cfg)
     _check_agreements(cfg)
     _check_scheme_needs(cfg)
@@ -228,7 +230,7 @@ def _check_scheme_needs(cfg: RobotConfig) -> None:
         raise RobotConfigError(f"{cfg.path}: [robot] radio_profile: missing: the [radio] "
                                f"({cfg.backend('radio')}) needs the team's radio profile, one of "
                                f"{', '.join(sorted(PROFILES))}")
-    for need in sorted(build_scheme(cfg.scheme).needs_of()):
+    for need in sorted(build_scheme(cfg.scheme, scheme_settings(cfg.overrides)).needs_of()):
         kind = "radio" if need == "relay" else need
         if kind in PERIPHERALS and not cfg.fitted(kind):
             raise RobotConfigError(f"{cfg.path}: [robot] scheme: {cfg.scheme} needs {need} ({NEEDS[need]}), but "
@@ -269,7 +271,8 @@ def open_robot(cfg: RobotConfig, rates: TaskRates = TaskRates(),
                 ctx.clock = devices["clock"]
         hal = Hal(robot_id=cfg.robot_id, **devices)
         profile = PROFILES[cfg.radio_profile] if cfg.radio_profile is not None else None
-        agent = ExplorerAgent(hal, params_with(cfg.overrides), rates, cfg.scheme, profile, team_size=cfg.team_size)
+        scheme = build_scheme(cfg.scheme, scheme_settings(cfg.overrides))
+        agent = ExplorerAgent(hal, params_with(cfg.overrides), rates, scheme, profile, team_size=cfg.team_size)
         agent.setup()
         if on_ready is not None:
             on_ready()
@@ -317,6 +320,8 @@ def config_help() -> str:
              *(_indented(s.help_line(), 4) for s in ROBOT_SETTINGS),
              "  [params]", _indented("explorer parameters, NAME = VALUE, as --set takes them (lorascout run --help "
                                      "lists them)", 4),
+             "  [params.SCHEME]", _indented("the scheme's own parameters, NAME = VALUE, as --set SCHEME.NAME=VALUE "
+                                            "takes them", 4),
              "  [world]  the simulated world the 'sim' backends are part of, stepped to the wall clock",
              *(_indented(s.help_line(), 4) for s in WORLD_SETTINGS)]
     for kind in PERIPHERALS:

@@ -23,7 +23,7 @@ from firmware.schemes.dense_baseline.keyframes import keyframe_bytes
 from firmware.params import ExplorationParams
 from firmware.schemes import build as build_scheme
 from host_tools.mission import Failure, MissionConfig, run_mission
-from host_tools.overrides import Overrides, describe, params_with
+from host_tools.overrides import Overrides, describe, params_with, scheme_settings
 from host_tools.safe_io import atomic_open, atomic_path, strict_dumps, write_text
 
 # What save() writes into a sweep's folder, for the commands that report it.
@@ -108,7 +108,7 @@ def _code_only(source: bytes) -> bytes:
 
 def run_trial(cfg: MissionConfig, overrides: Overrides = ()) -> dict:
     """One mission, reduced to what the tables and figures need (picklable for workers)."""
-    r = run_mission(cfg, params=params_with(overrides))
+    r = run_mission(cfg, params=params_with(overrides), scheme_settings=scheme_settings(overrides))
     report = r.to_json()
     report["map_spec"] = cfg.map_spec
     report["max_sim_s"] = cfg.max_sim_s

@@ -11,14 +11,15 @@ and 5 degrees of the truth (issue 25's bound for every merged pair), wrong other
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 
 import numpy as np
 
 from firmware.schemes.mr_topomap import merge as M
-from firmware.schemes.mr_topomap.params import DEFAULT, MrTopoParams
+from firmware.schemes import params_of
+from firmware.schemes.mr_topomap.params import MrTopoParams
+from host_tools.overrides import parse_overrides
 from tests import test_mrtopomap_world as W
 
 MAPS = ("cave:1:60x60", "intel.yaml", "depot.yaml")
@@ -52,17 +53,11 @@ def table(rows: list[dict]) -> str:
 
 
 def _params(settings: list[str]) -> MrTopoParams:
-    fields = {f.name: f for f in dataclasses.fields(MrTopoParams)}
-    values = {}
-    for item in settings:
-        name, sep, text = item.partition("=")
-        if not sep or name not in fields:
-            raise SystemExit(f"--set {item!r}: expected NAME=VALUE with NAME one of MrTopoParams' fields")
-        try:
-            values[name] = type(getattr(DEFAULT, name))(text)
-        except ValueError:
-            raise SystemExit(f"--set {item!r}: {text!r} is not a {type(getattr(DEFAULT, name)).__name__}") from None
-    return dataclasses.replace(DEFAULT, **values)
+    """NAME=VALUE items as `--set mrtopomap.NAME=VALUE` takes them (typed and checked)."""
+    try:
+        return params_of("mrtopomap", parse_overrides([f"mrtopomap.{item}" for item in settings]))
+    except ValueError as exc:
+        raise SystemExit(str(exc)) from None
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -28,7 +28,7 @@ def test_values_are_typed_by_the_parameter_sorted_and_the_last_one_counts():
     ("target_seen_within_m", "expected NAME=VALUE"),
     ("=1.5", "expected NAME=VALUE"),
     ("no_such_thing=1", "no parameter 'no_such_thing'"),
-    ("info_rays=1.5", "info_rays takes a int, not '1.5'"),
+    ("info_rays=1.5", "info_rays takes an int, not '1.5'"),
     ("presence_holds_target=maybe", "presence_holds_target takes a bool, not 'maybe'"),
     ("d_cam_m=far", "d_cam_m takes a float, not 'far'"),
     ("d_cam_m=nan", "d_cam_m = nan is outside the valid range 0.5 <= d_cam_m <= 100 m"),
@@ -113,7 +113,11 @@ def test_help_and_readme_list_every_parameter_from_the_declaration(cli):
     from host_tools.overrides import README_BLOCK, params_markdown
     from host_tools.readme_sync import markers
 
+    from host_tools.overrides import scheme_fields, schemes_with_params
+
     names = [f.name for f in dataclasses.fields(ExplorationParams)]
+    names += [f"{scheme}.{name}" for scheme in schemes_with_params() for name in scheme_fields(scheme)]
+    assert "wiserx.tau_enabled" in names and "mrtopomap.nfa_max" in names
     for command in ("run", "sweep"):
         helped = cli(command, "--help")
         assert helped.code == 0
@@ -124,3 +128,72 @@ def test_help_and_readme_list_every_parameter_from_the_declaration(cli):
     begin, end = markers(README_BLOCK)
     block = readme[readme.index(begin):readme.index(end)]
     assert params_markdown() in block, "README's parameter table is stale: python -m host_tools.readme_sync"
+
+
+# ---- a scheme's own parameters: --set SCHEME.NAME=VALUE ----------------------------------------
+
+def test_scheme_settings_are_typed_by_the_declaration_and_reach_the_scheme():
+    from firmware.schemes import build, params_of
+
+    got = parse_overrides(["wiserx.tau_enabled=off", "wiserx.bearing_median_k=7", "wiserx.fill_rule=pts2",
+                           "mrtopomap.nfa_max=0.001", "d_cam_m=3"])
+    assert got == (("d_cam_m", 3.0), ("mrtopomap.nfa_max", 0.001), ("wiserx.bearing_median_k", 7),
+                   ("wiserx.fill_rule", "pts2"), ("wiserx.tau_enabled", False))
+    assert params_with(got) == params_with((("d_cam_m", 3.0),))      # the explorer's own take only theirs
+    wiserx = params_of("wiserx:paper", got)
+    assert (wiserx.tau_enabled, wiserx.bearing_median_k, wiserx.fill_rule) == (False, 7, "pts2")
+    assert wiserx.hard_enabled and wiserx.kappa1_m == 5.0            # the variant's own defaults stay
+    assert params_of("mrtopomap", got).nfa_max == 0.001
+    assert params_of("bayer-faigl:minpos", got) is None              # no parameters, none named
+    assert build("wiserx", got).params == wiserx.__class__(tau_enabled=False, bearing_median_k=7, fill_rule="pts2")
+    assert build("wiserx").params.tau_enabled is True
+
+
+@pytest.mark.parametrize("item, says", [
+    ("wiserx.kappa1_m=-1", "wiserx.kappa1_m = -1.0 is outside the valid range 0 <= kappa1_m <= 1000 m"),
+    ("wiserx.kappa1_m=nan", "wiserx.kappa1_m = nan is outside the valid range"),
+    ("wiserx.bearing_median_k=2.5", "wiserx.bearing_median_k takes an int, not '2.5'"),
+    ("wiserx.tau_enabled=maybe", "wiserx.tau_enabled takes a bool, not 'maybe'"),
+    ("wiserx.fill_rule=square", "wiserx.fill_rule = 'square': fill_rule is disc or pts2"),
+    ("wiserx.kappa=5", "scheme 'wiserx' has no parameter 'kappa' (it has: bearing_median_k,"),
+    ("mrtopomap.grid_rays=48", "scheme 'mrtopomap' has no parameter 'grid_rays'"),   # the records' meaning
+    ("minpos.x=1", "no scheme 'minpos' (the schemes with parameters of their own: "),
+    ("meier.x=1", "scheme 'meier' has no parameters of its own"),
+])
+def test_bad_scheme_settings_say_which_and_why(item, says):
+    with pytest.raises(ValueError, match=f"--set '{item}'") as err:
+        parse_overrides([item])
+    assert says in str(err.value)
+
+
+def test_scheme_settings_are_checked_together_in_every_variant():
+    with pytest.raises(ValueError) as err:
+        parse_overrides(["wiserx.soft_fill=0.97"])
+    assert "soft_fill (0.97) must not exceed hard_fill (0.95) (in wiserx:complete)" in str(err.value)
+
+
+def test_every_schemes_defaults_lie_in_their_declaration():
+    from firmware.declared import check_declared
+    from firmware.schemes import SCHEMES, scheme_class
+
+    for name in SCHEMES:
+        cls = scheme_class(name)
+        for variant in cls.variants if cls.params_type is not None else ():
+            check_declared(cls.default_params(variant))          # raises otherwise
+
+
+def test_a_run_with_a_scheme_setting_runs_it_and_records_it(cli):
+    argv = ["run", "--map", "cave:4:40x40", "--robots", "2", "--max-sim-s", "30", "--json", "--quiet"]
+    blind = json.loads(cli(*argv, "--scheme", "wiserx:blind").out)
+    set_blind = json.loads(cli(*argv, "--scheme", "wiserx", "--set", "wiserx.relative_sensing=false").out)
+    seeing = json.loads(cli(*argv, "--scheme", "wiserx").out)
+    assert set_blind["params_overrides"] == {"wiserx.relative_sensing": False}
+    assert set_blind["trajectory_sha256"] == blind["trajectory_sha256"] != seeing["trajectory_sha256"]
+
+
+def test_a_scheme_setting_for_a_scheme_not_run_is_refused(cli):
+    r = cli("run", "--map", "cave:4:40x40", "--scheme", "minpos", "--set", "wiserx.tau_enabled=false")
+    assert r.code == 2
+    assert "--set wiserx.tau_enabled=false: no scheme of this run is 'wiserx' (--scheme minpos)" in r.err
+    r = cli("sweep", "--maps", "cave:4:40x40", "--schemes", "minpos", "greedy", "--set", "mrtopomap.k_min=5")
+    assert r.code == 2 and "no scheme of this run is 'mrtopomap' (--schemes minpos greedy)" in r.err

@@ -100,6 +100,11 @@ MISTAKES = [
     ({"params": {"d_cam_m": "far"}}, "[params] d_cam_m: d_cam_m = 'far': takes a float"),
     ({"params": {"resolution_m": 0.0}}, "[params] resolution_m: resolution_m = 0.0 is outside the valid range"),
     ({"params": {"logodds_min": -0.1}}, "[params] logodds_min = -0.1 must be below logodds_free = -0.3"),
+    ({"params": {"wiserx.tau_enabled": 1}}, "[params] wiserx.tau_enabled = 1: takes true or false"),
+    ({"params": {"wiserx.kappa1": 5.0}}, "[params] wiserx.kappa1: scheme 'wiserx' has no parameter 'kappa1'"),
+    ({"params": {"bayer-faigl.x": 1}}, "[params] bayer-faigl: scheme 'bayer-faigl' has no parameters of its own"),
+    ({"params": {"wiserx.tau_enabled": False}},
+     "[params] wiserx.tau_enabled=false: no scheme of this run is 'wiserx' ([robot] scheme = independent)"),
     ({"robot": {"scheme": "bayer-faigl:minpos"}}, "[robot] scheme: bayer-faigl:minpos needs radio"),
     ({"radio": {"backend": "sim"}}, "[robot] radio_profile: missing: the [radio] (sim) needs the team's radio profile"),
     ({"radio": {"backend": "rn2483", "port": "/dev/ttyUSB0", "baud": 9600}, "robot": {"radio_profile": "eu868-g3"}},
@@ -158,6 +163,12 @@ def test_a_file_that_is_not_utf8_is_refused(tmp_path, cli):
     path.write_bytes(b"[robot]\nid = 0 # \xff\n")
     r = cli("robot", "--config", path, "--check")
     assert r.code == 2 and f"{path}: not UTF-8 text (line 2, byte 17)" in r.err, r
+
+
+def test_a_params_table_of_the_scheme_sets_its_own_parameters(tmp_path):
+    cfg = load_robot_config(write(tmp_path, changed(SIM, {"robot": {"scheme": "wiserx:blind"},
+                                                          "params": {"wiserx.kappa1_m": 5, "d_cam_m": 3.0}})))
+    assert cfg.describe()["params_overrides"] == {"d_cam_m": 3.0, "wiserx.kappa1_m": 5.0}
 
 
 def test_optional_peripherals_left_out_are_null_and_the_clock_monotonic(tmp_path):

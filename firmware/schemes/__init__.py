@@ -3,15 +3,19 @@ maps to (module, class), and only the scheme asked for is imported.
 
 Adding a scheme: write its package under firmware/schemes/ (a firmware.schemes.base.Scheme
 subclass, with its records' dialect in records.py if it sends any) and add one line to
-SCHEMES. Its dialect then is in all_dialects(): every node decodes it.
+SCHEMES. Its dialect then is in all_dialects(): every node decodes it. Its own parameters,
+if it declares a params_type, are set with `--set NAME.FIELD=VALUE` (build's settings).
 
 A scheme is asked for as NAME or NAME:VARIANT (`bayer-faigl:minpos`); the strategy names of
 the first version (`minpos`, `greedy-full`, ...) stay valid as aliases.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib
+from collections.abc import Iterable
+from typing import Any
 
 from firmware.comms.schema import CORE, DialectSet
 from firmware.schemes.base import Scheme
@@ -54,9 +58,35 @@ def resolve(spec: str) -> tuple[str, str]:
     return name, scheme_class(name).checked_variant(variant)
 
 
-def build(spec: str) -> Scheme:
+Settings = Iterable[tuple[str, Any]]    # ("SCHEME.FIELD", value), as `--set` gives them
+
+
+def params_of(spec: str, settings: Settings = ()) -> Any | None:
+    """The parameters the scheme of `spec` runs with: its variant's defaults, changed by the
+    settings that name this scheme (the others are not its business). None for a scheme
+    without parameters of its own. ValueError naming a setting the scheme has no field for,
+    or a value its parameters refuse."""
     name, variant = resolve(spec)
-    return scheme_class(name)(variant)
+    cls = scheme_class(name)
+    changes = {key.partition(".")[2]: value for key, value in settings if key.partition(".")[0] == name}
+    if cls.params_type is None:
+        if changes:
+            raise ValueError(f"scheme {name!r} has no parameters of its own to set ({', '.join(changes)})")
+        return None
+    fields = {f.name for f in dataclasses.fields(cls.params_type)}
+    for field_name in changes:
+        if field_name not in fields:
+            raise ValueError(f"scheme {name!r} has no parameter {field_name!r}")
+    return dataclasses.replace(cls.default_params(variant), **changes)
+
+
+def build(spec: str, settings: Settings = ()) -> Scheme:
+    """The scheme of `spec`, with its parameters changed by the settings that name it."""
+    name, variant = resolve(spec)
+    settings = tuple(settings)
+    if not any(key.partition(".")[0] == name for key, _ in settings):
+        return scheme_class(name)(variant)
+    return scheme_class(name)(variant, params=params_of(spec, settings))
 
 
 def specs() -> list[str]:

@@ -118,6 +118,10 @@ class Scheme(ABC):
     dialect: ClassVar[Dialect | None] = None           # its records on the air (None: sends none of its own)
     needs: ClassVar[frozenset[str]] = frozenset()
     relay_hops: ClassVar[int] = 3      # with "relay" in needs: how many hops its frames may travel
+    # Its own parameters (a frozen dataclass declared with firmware.declared), changed with
+    # `--set NAME.FIELD=VALUE` where NAME is the scheme's; a scheme with a params_type takes
+    # `params=` in its constructor. None: it has none beyond firmware.params.
+    params_type: ClassVar[type | None] = None
 
     def __init__(self, variant: str = "") -> None:
         self.variant = self.checked_variant(variant)
@@ -131,6 +135,11 @@ class Scheme(ABC):
             raise ValueError(f"scheme {cls.name!r} has no variant {variant!r}; "
                              f"known: {', '.join(v for v in cls.variants if v) or 'none'}")
         return variant
+
+    @classmethod
+    def default_params(cls, variant: str) -> Any:
+        """The parameters a variant runs with unless `--set` changes them."""
+        return cls.params_type()
 
     @property
     def records(self) -> tuple[str, ...]:

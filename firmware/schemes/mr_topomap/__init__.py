@@ -23,7 +23,7 @@ What exists:
                     SMMR's 0.9-sigma rule
     scheme.py       the Scheme (`mrtopomap`, `mrtopomap:literal` = `mrtopomap-literal`):
                     Algorithm 1 on the robot's own odometry, records on the air, merges
-                    every mrtopo_merge_period_s, merged teammates' vertices and directions in
+                    every merge_period_s (params.py), merged teammates' vertices and directions in
                     planning (III-E updates, eq. (1), the goal and its fallback), termination
                     and waking up on teammates' open directions; needs no shared frame
 

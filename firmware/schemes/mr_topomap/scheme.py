@@ -13,14 +13,14 @@ shared frame, and runs with `--frames own`.
 Per teammate it estimates T_own<-teammate from the records held (merge.py: descriptor
 hypotheses against its own vertices and a profile grid of its own map, consensus, ratio
 test, occupancy and view checks; a pure function of the records, so merges revise
-themselves), every mrtopo_merge_period_s when something changed. Variant `literal`: the
+themselves), every merge_period_s when something changed. Variant `literal`: the
 paper's own translation-only merge on the first match, with SMMR's outlier rule
 (literal.py), as an ablation.
 
 Once a teammate's frame is merged, its vertices (moved into the own frame) count in
 Algorithm 1 (no own vertex is built next to one, A5), its open directions are goals like
 the own ones, its vertices' centre enters eq. (1), and own waypoints it evidently saw
-(a vertex of its within mrtopo_team_near_m in line of sight, no open direction of it
+(a vertex of its within team_near_m in line of sight, no open direction of it
 near) are left to it.
 
 Its planning stage (the shared planner chooses, routes and keeps strikes):
@@ -44,7 +44,6 @@ sent), as `independent` does.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
 from typing import NamedTuple
@@ -59,10 +58,9 @@ from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, Candidate, Ow
                                    Services, cost_along_graph)
 from firmware.schemes.mr_topomap import directions as dirs
 from firmware.schemes.mr_topomap.literal import LiteralMerge
-from firmware.schemes.mr_topomap.merge import SE2, MergeResult, OwnMap, ProfileGrid, TeammateMerge, VertexSet, wrap
-from firmware.schemes.mr_topomap.params import DEFAULT
-from firmware.schemes.mr_topomap.records import (DIALECT, NO_VERTEX, SECTOR_RAD, SECTORS, Edge, Vertex, sector_class,
-                                                 vertex_from_values, vertex_values)
+from firmware.schemes.mr_topomap.merge import SE2, MergeResult, OwnMap, ProfileGrid, TeammateMerge, VertexSet
+from firmware.schemes.mr_topomap.params import DEFAULT, MrTopoParams
+from firmware.schemes.mr_topomap.records import DIALECT, NO_VERTEX, sector_class, vertex_from_values, vertex_values
 from firmware.schemes.mr_topomap.vertices import NewVertex, Place, ReEntry, VertexBuilder
 from firmware.services.grid_paths import lines_of_sight, nearest_traversable
 from firmware.services.targets import Target
@@ -98,11 +96,14 @@ class MrTopoMap(Scheme):
                 "literal": "the paper's own merge as an ablation: translation only, first match, SMMR's rule"}
     dialect = DIALECT
     needs = frozenset({"radio"})
+    params_type = MrTopoParams
+
+    def __init__(self, variant: str = "", params: MrTopoParams | None = None) -> None:
+        super().__init__(variant)
+        self.pp = params if params is not None else DEFAULT
 
     def attach(self, services: Services) -> None:
         super().attach(services)
-        p = services.params
-        self.pp = dataclasses.replace(DEFAULT, th_merge=p.mrtopo_th_merge, d_vertex_m=p.mrtopo_d_vertex_m)
         self.me = services.robot_id
         self.builder = VertexBuilder(self.me, self.pp)
         self.book = dirs.DirectionBook()
@@ -134,7 +135,7 @@ class MrTopoMap(Scheme):
             "grid_renders", "records_dropped_by_link", "vertex_ids_exhausted", "wake_ups"), 0)
 
     def tasks(self) -> list[Task]:
-        return [Task("mrtopo_merge", 1.0 / self.s.params.mrtopo_merge_period_s, self._task_merge)]
+        return [Task("mrtopo_merge", 1.0 / self.pp.merge_period_s, self._task_merge)]
 
     # --- own vertices (Algorithm 1) --------------------------------------------------
     def on_travel(self, pose: OdometrySample, now_us: int) -> None:
@@ -239,12 +240,12 @@ class MrTopoMap(Scheme):
 
     def _refresh_grid(self, now_us: int) -> bool:
         """The profile grid and own map for the merge's checks, rendered again every
-        mrtopo_grid_period_s if the robot built a vertex since. True if rendered now."""
+        grid_period_s if the robot built a vertex since. True if rendered now."""
         p = self.s.params
         n_own = len(self.builder.vertices)
         if n_own == 0:
             return False
-        if self._grid_us is not None and (now_us - self._grid_us < p.mrtopo_grid_period_s * 1e6
+        if self._grid_us is not None and (now_us - self._grid_us < self.pp.grid_period_s * 1e6
                                           or n_own == self._grid_vertices):
             return False
         state, r0, c0 = self.s.local_map.whole_state()
@@ -368,7 +369,7 @@ class MrTopoMap(Scheme):
     def _eq1(self, xy: np.ndarray) -> np.ndarray:
         """Eq. (1) for points xy (n, 2) in the own frame: w d(c_own, f) + (1 - w)/m sum_j
         d(c_j, f) over the m merged teammates (w alone, the paper's III-D1, before any merge)."""
-        w = self.s.params.mrtopo_w
+        w = self.pp.w
         own = self._own_vertices().xy
         c = own.mean(axis=0) if len(own) else np.zeros(2)
         s = np.hypot(xy[:, 0] - c[0], xy[:, 1] - c[1])
@@ -392,8 +393,8 @@ class MrTopoMap(Scheme):
     # --- the planning stage -----------------------------------------------------------
     def filter_waypoints(self, view: PlanningView) -> None:
         """Own waypoints a merged teammate evidently saw are left to it: one of its vertices
-        within mrtopo_team_near_m in line of sight, and none of its open directions that close."""
-        near_m = self.s.params.mrtopo_team_near_m
+        within team_near_m in line of sight, and none of its open directions that close."""
+        near_m = self.pp.team_near_m
         items = self.s.waypoints.items
         if near_m <= 0 or not items or not self._team_xy:
             return

@@ -1,17 +1,14 @@
 """The relative-position EKF's constants (../shared/schemes/wiserx.md sections 1.3, 2 and 4,
-A1-A5), with units in the names. Each field's metadata holds its unit, valid range
-(inclusive) and meaning, as firmware.params declares the explorer's; EkfParams checks
-itself when built.
+A1-A5), with units in the names. Each field declares its unit, valid range
+(inclusive) and meaning (firmware.declared); both classes check themselves when built, and
+`--set wiserx.NAME=VALUE` changes a WiserxParams field for a run or a sweep.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass
 
-
-def _p(default, unit: str, lo, hi, doc: str):
-    return field(default=default, metadata={"unit": unit, "lo": lo, "hi": hi, "doc": doc})
-
+from firmware.declared import check_declared, choice, flag, number
 
 # Chi-square quantiles at 99 % (the spec's gate, section 2): 1 degree of freedom (a range or
 # a bearing alone) and 2 (a range and a bearing of one stamp).
@@ -24,54 +21,39 @@ class EkfParams:
     # Motion: constant velocity driven by white-noise acceleration of this power spectral
     # density, Q(dt) = q [[dt^3/3 I, dt^2/2 I], [dt^2/2 I, dt I]] (A1; q tuned by the NEES test
     # of section 6.2).
-    accel_psd_m2ps3: float = _p(0.1, 'm^2/s^3', 0.0, 100.0, "q: white-noise acceleration of a teammate's motion")
+    accel_psd_m2ps3: float = number(0.1, 'm^2/s^3', 0.0, 100.0, "q: white-noise acceleration of a teammate's motion")
     # R = diag(range_std^2, bearing_std^2): the sensor model's line-of-sight noise (section 2).
-    range_std_m: float = _p(0.10, 'm', 1e-4, 100.0, 'UWB range noise (standard deviation)')
-    bearing_std_rad: float = _p(math.radians(5.0), 'rad', 1e-4, math.pi, 'AoA bearing noise (standard deviation)')
+    range_std_m: float = number(0.10, 'm', 1e-4, 100.0, 'UWB range noise (standard deviation)')
+    bearing_std_rad: float = number(math.radians(5.0), 'rad', 1e-4, math.pi, 'AoA bearing noise (standard deviation)')
     # P0: the first range and bearing turned into a position covariance; no velocity known.
-    init_speed_std_mps: float = _p(0.5, 'm/s', 0.0, 100.0, "a new track's velocity uncertainty (per axis)")
+    init_speed_std_mps: float = number(0.5, 'm/s', 0.0, 100.0, "a new track's velocity uncertainty (per axis)")
     # Gate: normalised innovation squared above this rejects the sample (99 %).
-    gate_1dof: float = _p(CHI2_99_1DOF, '', 0.0, 1e6, 'gate on a range or a bearing alone (chi-square, 1 dof)')
-    gate_2dof: float = _p(CHI2_99_2DOF, '', 0.0, 1e6, 'gate on a range and bearing together (chi-square, 2 dof)')
-    reinit_after_rejections: int = _p(3, 'samples', 1, 1000, 'after this many rejections in a row a track starts again')
+    gate_1dof: float = number(CHI2_99_1DOF, '', 0.0, 1e6, 'gate on a range or a bearing alone (chi-square, 1 dof)')
+    gate_2dof: float = number(CHI2_99_2DOF, '', 0.0, 1e6, 'gate on a range and bearing together (chi-square, 2 dof)')
+    reinit_after_rejections: int = number(3, 'samples', 1, 1000, 'after this many rejections in a row a track starts again')
     # A range and a bearing this close in time start a track together (their stamps rarely
     # coincide on real sensors).
-    pair_max_gap_s: float = _p(0.5, 's', 0.0, 60.0, 'a range and a bearing this close in time start a track')
+    pair_max_gap_s: float = number(0.5, 's', 0.0, 60.0, 'a range and a bearing this close in time start a track')
     # The Gaussian second-order filter's terms in the update (ekf.update): without them the
     # filter is overconfident wherever the range circle's sagitta across the position's
     # lateral spread exceeds the range noise (beyond ~13 m at 10 cm and 5 degrees; NEES test
     # A2 on ten seeds: time-averaged NEES 2.3 to 19.7, median 4.1, without; 1.8 to 1.9 with).
-    second_order: bool = _p(True, 'bool', None, None, "the update's second-order terms of the range and bearing")
+    second_order: bool = flag(True, "the update's second-order terms of the range and bearing")
     # Closer than this the bearing's linearisation means nothing (two bodies cannot be closer).
-    min_range_m: float = _p(0.1, 'm', 0.0, 10.0, 'no update while the predicted range is below this')
+    min_range_m: float = number(0.1, 'm', 0.0, 10.0, 'no update while the predicted range is below this')
     # Window mode (A3-A5): all samples of window_s reduced to one range (mean of every second
     # sample) and one bearing (the largest cluster within window_cluster_rad, if it holds at
     # least window_min_share of the samples), with the pose at the window's middle.
-    window_s: float = _p(5.0, 's', 0.1, 600.0, 'window mode: samples of this long make one update')
-    window_cluster_rad: float = _p(math.radians(10.0), 'rad', 0.0, math.pi,
+    window_s: float = number(5.0, 's', 0.1, 600.0, 'window mode: samples of this long make one update')
+    window_cluster_rad: float = number(math.radians(10.0), 'rad', 0.0, math.pi,
                                    "window mode: bearings this close to a sample are in its cluster")
-    window_min_share: float = _p(0.5, '', 0.0, 1.0, "window mode: the cluster's least share of the window's bearings")
+    window_min_share: float = number(0.5, '', 0.0, 1.0, "window mode: the cluster's least share of the window's bearings")
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(f.default, bool):
-                if not isinstance(value, bool):
-                    raise ValueError(f"EkfParams.{f.name} must be a bool, got {value!r}")
-                continue
-            lo, hi = f.metadata["lo"], f.metadata["hi"]
-            ok_type = isinstance(value, int) if isinstance(f.default, int) else isinstance(value, (int, float))
-            if isinstance(value, bool) or not ok_type or not math.isfinite(value) or not lo <= value <= hi:
-                kind = "an integer" if isinstance(f.default, int) else "a number"
-                raise ValueError(f"EkfParams.{f.name} must be {kind} in [{lo:g}, {hi:g}] {f.metadata['unit']}".rstrip()
-                                 + f", got {value!r}")
+        check_declared(self)
 
 
 FILL_RULES = ("disc", "pts2")
-
-
-def _choice(default: str, choices: tuple[str, ...], doc: str):
-    return field(default=default, metadata={"unit": "", "choices": choices, "doc": doc})
 
 
 @dataclass(frozen=True)
@@ -85,38 +67,38 @@ class WiserxParams:
     # bearing_median_k bearings to that teammate, each taken as its residual against the
     # track's prediction at its time (so a teammate driving past does not look like
     # multipath); with fewer than bearing_median_min of them, only the EKF's gate decides.
-    bearing_median_k: int = _p(5, 'samples', 1, 100, 'bearings whose circular median a new bearing must be near')
-    bearing_median_min: int = _p(3, 'samples', 1, 100, 'bearings needed before the median check applies')
-    bearing_median_tol_rad: float = _p(math.radians(10.0), 'rad', 0.0, math.pi,
+    bearing_median_k: int = number(5, 'samples', 1, 100, 'bearings whose circular median a new bearing must be near')
+    bearing_median_min: int = number(3, 'samples', 1, 100, 'bearings needed before the median check applies')
+    bearing_median_tol_rad: float = number(math.radians(10.0), 'rad', 0.0, math.pi,
                                        "a bearing's largest distance from the recent median")
     # A range jumping from the last accepted one by more than range_jump_m plus
     # range_jump_speed_mps times the time between them is held back, unless range_jump_agree
     # held-back ranges in a row agree with each other within range_jump_m (the code's 3 m rule).
-    range_jump_m: float = _p(3.0, 'm', 0.0, 1000.0, 'a range jumping this far from the last accepted one is held back')
-    range_jump_speed_mps: float = _p(2.0, 'm/s', 0.0, 100.0, 'the jump allowed grows at this rate with the gap in time')
-    range_jump_agree: int = _p(3, 'samples', 1, 100, 'held-back ranges that agree in a row are taken')
+    range_jump_m: float = number(3.0, 'm', 0.0, 1000.0, 'a range jumping this far from the last accepted one is held back')
+    range_jump_speed_mps: float = number(2.0, 'm/s', 0.0, 100.0, 'the jump allowed grows at this rate with the gap in time')
+    range_jump_agree: int = number(3, 'samples', 1, 100, 'held-back ranges that agree in a row are taken')
     # Neither a range nor a bearing of a teammate for this long: it failed (tau = 0); the
     # next sample revives it (A18).
-    silence_fail_s: float = _p(30.0, 's', 0.1, 1e6, 'a teammate not heard for this long counts as failed')
+    silence_fail_s: float = number(30.0, 's', 0.1, 1e6, 'a teammate not heard for this long counts as failed')
     # An estimate counts for beta (eq. 3) while its last accepted update is this recent (A13).
-    fresh_s: float = _p(30.0, 's', 0.0, 1e6, "an estimate counts for beta this long after its last update")
+    fresh_s: float = number(30.0, 's', 0.0, 1e6, "an estimate counts for beta this long after its last update")
     # Estimates farther than this outside the boundary are not recorded (A26).
-    boundary_margin_m: float = _p(2.0, 'm', 0.0, 1000.0, 'estimates this far outside the boundary are not recorded')
+    boundary_margin_m: float = number(2.0, 'm', 0.0, 1000.0, 'estimates this far outside the boundary are not recorded')
 
     # --- hgrid: the coverage record (1.4, A6-A9, 5.8) ---
-    sensor_range_m: float = _p(10.0, 'm', 0.1, 1000.0, 'r: the LiDAR range, the hgrid cell side at most')
-    insert_period_s: float = _p(5.0, 's', 0.1, 1e4, 'own pose and fresh estimates go into the hgrid this often')
-    fill_rule: str = _choice("disc", FILL_RULES, "disc: >= fill_disc_share of a cell within r of recorded "
+    sensor_range_m: float = number(10.0, 'm', 0.1, 1000.0, 'r: the LiDAR range, the hgrid cell side at most')
+    insert_period_s: float = number(5.0, 's', 0.1, 1e4, 'own pose and fresh estimates go into the hgrid this often')
+    fill_rule: str = choice("disc", FILL_RULES, "disc: >= fill_disc_share of a cell within r of recorded "
                              "positions; pts2: >= 2 recorded positions in the cell (the authors' code)")
-    fill_disc_share: float = _p(0.5, '', 0.0, 1.0, 'disc rule: the share of a cell within r of positions that fills it')
-    fill_lattice_m: float = _p(1.0, 'm', 0.05, 100.0, 'disc rule: the spacing of the points a cell is tested at')
-    footprint_min_area_m2: float = _p(25.0, 'm^2', 0.0, 1e6, 'an hgrid cell with less navigable area is not counted')
-    soft_fill: float = _p(0.85, '', 0.0, 1.0, 'soft termination: from this fill on, frontiers with too much loss are invalid')
-    hard_fill: float = _p(0.95, '', 0.0, 1.0, 'hard termination: at this fill the robot stops (if hard_enabled)')
-    hard_enabled: bool = _p(False, 'bool', None, None, 'stop at hard_fill')
-    tau_enabled: bool = _p(True, 'bool', None, None, "eq. (7): a failed teammate's points stop counting (else eq. 6)")
+    fill_disc_share: float = number(0.5, '', 0.0, 1.0, 'disc rule: the share of a cell within r of positions that fills it')
+    fill_lattice_m: float = number(1.0, 'm', 0.05, 100.0, 'disc rule: the spacing of the points a cell is tested at')
+    footprint_min_area_m2: float = number(25.0, 'm^2', 0.0, 1e6, 'an hgrid cell with less navigable area is not counted')
+    soft_fill: float = number(0.85, '', 0.0, 1.0, 'soft termination: from this fill on, frontiers with too much loss are invalid')
+    hard_fill: float = number(0.95, '', 0.0, 1.0, 'hard termination: at this fill the robot stops (if hard_enabled)')
+    hard_enabled: bool = flag(False, 'stop at hard_fill')
+    tau_enabled: bool = flag(True, "eq. (7): a failed teammate's points stop counting (else eq. 6)")
     # Without deployment knowledge (no boundary given): a square this wide around the start.
-    fallback_boundary_m: float = _p(100.0, 'm', 1.0, 1e5, 'the boundary assumed when none is given')
+    fallback_boundary_m: float = number(100.0, 'm', 1.0, 1e5, 'the boundary assumed when none is given')
 
     # --- utility: eqs. (2)-(7) (1.5, A10-A16) ---
     # kappa1: the authors' code has r / 2 (paper mode). The complete mode takes 0.8 r (the
@@ -125,32 +107,16 @@ class WiserxParams:
     # recorded position stands for what its 10 m LiDAR saw around it. Intel lab, 3 robots,
     # realistic sensing, seed 1: last self-stop 1253 s at r / 2, 806 s at 0.8 r; coverage
     # then 0.993 and 0.974.
-    kappa1_m: float = _p(8.0, 'm', 0.0, 1000.0, "the sigmoid's midpoint (0.8 r; r / 2 in paper mode)")
-    kappa2_m: float = _p(0.1, 'm', 1e-3, 1000.0, "the sigmoid's steepness")
-    info_cell_m: float = _p(0.5, 'm', 0.05, 10.0, 'unknown cells are counted in blocks of this side for I and E')
-    beta_min_distance_m: float = _p(1.12, 'm', 1.0, 1000.0, 'beta = log10(max(d, this)) (>= 0.05 at 1.12 m)')
-    invalid_ratio: float = _p(0.90, '', 0.0, 1.0, 'after soft: a viewpoint losing more than this share of I_0 is invalid')
-    commit_share: float = _p(0.5, '', 0.0, 1.0, 'a target is kept until its remaining path is this share of its first')
-    relative_sensing: bool = _p(True, 'bool', None, None, 'use UWB and AoA (False: wiserx-blind)')
+    kappa1_m: float = number(8.0, 'm', 0.0, 1000.0, "the sigmoid's midpoint (0.8 r; r / 2 in paper mode)")
+    kappa2_m: float = number(0.1, 'm', 1e-3, 1000.0, "the sigmoid's steepness")
+    info_cell_m: float = number(0.5, 'm', 0.05, 10.0, 'unknown cells are counted in blocks of this side for I and E')
+    beta_min_distance_m: float = number(1.12, 'm', 1.0, 1000.0, 'beta = log10(max(d, this)) (>= 0.05 at 1.12 m)')
+    invalid_ratio: float = number(0.90, '', 0.0, 1.0, 'after soft: a viewpoint losing more than this share of I_0 is invalid')
+    commit_share: float = number(0.5, '', 0.0, 1.0, 'a target is kept until its remaining path is this share of its first')
+    relative_sensing: bool = flag(True, 'use UWB and AoA (False: wiserx-blind)')
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if "choices" in f.metadata:
-                if value not in f.metadata["choices"]:
-                    raise ValueError(f"WiserxParams.{f.name} must be one of {', '.join(f.metadata['choices'])}, "
-                                     f"got {value!r}")
-                continue
-            if isinstance(f.default, bool):
-                if not isinstance(value, bool):
-                    raise ValueError(f"WiserxParams.{f.name} must be a bool, got {value!r}")
-                continue
-            lo, hi = f.metadata["lo"], f.metadata["hi"]
-            ok_type = isinstance(value, int) if isinstance(f.default, int) else isinstance(value, (int, float))
-            if isinstance(value, bool) or not ok_type or not math.isfinite(value) or not lo <= value <= hi:
-                kind = "an integer" if isinstance(f.default, int) else "a number"
-                raise ValueError(f"WiserxParams.{f.name} must be {kind} in [{lo:g}, {hi:g}] {f.metadata['unit']}".rstrip()
-                                 + f", got {value!r}")
+        check_declared(self)
         if self.soft_fill > self.hard_fill:
             raise ValueError(f"WiserxParams.soft_fill ({self.soft_fill:g}) must not exceed hard_fill ({self.hard_fill:g})")
 

@@ -45,14 +45,6 @@ from hal.samples import OdometrySample
 RELSENSE_HZ = 10.0
 
 
-def params_for(variant: str) -> WiserxParams:
-    if variant == "paper":
-        return WiserxParams.paper()
-    if variant == "blind":
-        return WiserxParams(relative_sensing=False)
-    return WiserxParams()
-
-
 class Wiserx(Scheme):
     name = "wiserx"
     doc = "WiSER-X: teammates located by UWB range and WiFi AoA alone, nothing sent over LoRa"
@@ -65,10 +57,19 @@ class Wiserx(Scheme):
     }
     default_variant = "complete"
     needs = frozenset({"uwb", "aoa"})
+    params_type = WiserxParams
+
+    @classmethod
+    def default_params(cls, variant: str) -> WiserxParams:
+        if variant == "paper":
+            return WiserxParams.paper()
+        if variant == "blind":
+            return WiserxParams(relative_sensing=False)
+        return WiserxParams()
 
     def __init__(self, variant: str = "", params: WiserxParams | None = None) -> None:
         super().__init__(variant)
-        self.params = params if params is not None else params_for(self.variant)
+        self.params = params if params is not None else self.default_params(self.variant)
 
     def needs_of(self) -> frozenset[str]:
         return self.needs if self.params.relative_sensing else frozenset()
