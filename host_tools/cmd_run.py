@@ -6,7 +6,7 @@ import signal
 import sys
 import threading
 
-from host_tools.mission import MissionConfig, run_mission
+from host_tools.mission import MissionConfig, drawn_failures, run_mission
 from host_tools.options import (FAIL, FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEME,
                                 SEED, SET, SLOW, SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread)
 from host_tools.overrides import (check_schemes_used, combine_overrides, describe, params_help, params_with,
@@ -61,7 +61,8 @@ def main(args: argparse.Namespace) -> int:
                             capture_path=None if args.capture is None else str(args.capture),
                             wheel_slip_frac=args.wheel_slip, lidar_phase_ms=args.lidar_phase_ms, range_m=args.range_m,
                             spread_m=args.spread, spread_max_m=args.spread_max,
-                            failures=tuple(args.failures), speed_factors=tuple(args.speed_factors))
+                            failures=drawn_failures(tuple(args.failures), args.seed, args.robots),
+                            speed_factors=tuple(args.speed_factors))
     except (ValueError, OutputPathError) as exc:
         print(f"lorascout run: {exc}", file=sys.stderr)
         return 2

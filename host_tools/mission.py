@@ -36,6 +36,7 @@ from radio_sim.virtual_modem import open_serial_radios
 from world_sim.devices.lockstep import open_serial_sensors
 from world_sim.map_spec import Pose, resolve_map, spread_poses, staging_poses
 from world_sim.ros_map import reachable_from_starts
+from world_sim.seeding import stream
 from world_sim.world import World, WorldParams
 
 COVERAGE_SAMPLE_US = 1_000_000
@@ -48,6 +49,24 @@ class Failure(NamedTuple):
     robot: int
     at_s: float | None = None
     at_coverage: float | None = None
+
+
+# `--fail random` (../shared/schemes/wiserx.md A23): a robot drawn uniformly fails when the
+# team first sees a share of the area drawn uniformly in this range, both from the mission seed.
+DRAWN = Failure(-1)
+DRAWN_COVERAGE = (0.5, 0.7)
+
+
+def drawn_failures(failures: tuple[Failure, ...], seed: int, robots: int) -> tuple[Failure, ...]:
+    """The failures with DRAWN replaced by the robot and moment the seed draws (its own
+    stream, "failure": the same seed, the same failure, whatever the scheme)."""
+    if DRAWN not in failures:
+        return failures
+    if len(failures) > 1:
+        raise ValueError("failures (--fail): random draws the failing robot; give it alone")
+    rng = stream(seed, "failure")
+    robot = int(rng.integers(robots))
+    return (Failure(robot, at_coverage=round(float(rng.uniform(*DRAWN_COVERAGE)), 4)),)
 
 
 @dataclass(frozen=True)
@@ -146,6 +165,12 @@ class MissionResult:
     polygon_maps: dict | None = None     # schemes with polygon maps: host_tools.polygon_metrics.report
     frame_merges: dict | None = None     # schemes that merge frames: host_tools.merge_metrics
     failed_at_s: dict[int, float] = field(default_factory=dict)   # robot -> when it failed (MissionConfig.failures)
+    # With failures: the share of the reachable area the robots still running at the end saw
+    # (a failed robot's map is lost with it), and per failed robot the share of the area only
+    # it had seen when it failed, and how much of that the survivors saw by the end.
+    coverage_survivors: float | None = None
+    lost_at_failure: dict[int, float] = field(default_factory=dict)
+    recovered: dict[int, float | None] = field(default_factory=dict)
 
     @property
     def sim_speedup(self) -> float:
@@ -170,7 +195,10 @@ class MissionResult:
             "strategy": self.config.strategy,
             "frames": self.config.frames,
             **({"failures": [{**{k: v for k, v in f._asdict().items() if v is not None},
-                              "failed_at_s": self.failed_at_s.get(f.robot)} for f in self.config.failures]}
+                              "failed_at_s": self.failed_at_s.get(f.robot),
+                              "lost_at_failure": _rounded(self.lost_at_failure.get(f.robot)),
+                              "recovered": _rounded(self.recovered.get(f.robot))} for f in self.config.failures],
+                "coverage_survivors": _rounded(self.coverage_survivors)}
                if self.config.failures else {}),
             **({"speed_factors": {str(r): f for r, f in self.config.speed_factors}}
                if self.config.speed_factors else {}),
@@ -213,6 +241,18 @@ class MissionResult:
 
 
 WALL_TIME_KEYS = ("wall_s", "sim_speedup", "ticks_per_s")
+
+
+def _rounded(x: float | None) -> float | None:
+    return None if x is None else round(x, 6)
+
+
+def _seen_by(world: World, robots: list[int], reachable: np.ndarray) -> np.ndarray:
+    """The reachable cells any of `robots` has observed."""
+    seen = np.zeros_like(reachable)
+    for j in robots:
+        seen |= world.observed(j)
+    return seen & reachable
 
 
 def air_log_digest(air_frames: list[AirFrame]) -> str:
@@ -413,6 +453,10 @@ def _pose_errors(world: World, agents: list[ExplorerAgent], own_origins: list[Po
     return out
 
 
+def _on(running: list[bool]) -> list[int]:
+    return [i for i, on in enumerate(running) if on]
+
+
 def _failure_due(f: Failure, now_us: int, coverage: float) -> bool:
     return now_us >= int(round(f.at_s * 1e6)) if f.at_s is not None else coverage >= f.at_coverage
 
@@ -469,6 +513,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
     pending = {f.robot: f for f in cfg.failures}          # failures still to come
     running = [True] * cfg.robots                          # False: the robot failed
     failed_at_s: dict[int, float] = {}
+    lost: dict[int, np.ndarray] = {}                       # failed robot -> cells only it had seen then
     wall0 = time.perf_counter()
     while True:
         now = world.now_us
@@ -487,6 +532,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
             running[i] = False
             failed_at_s[i] = now / 1e6
             del pending[i]
+            lost[i] = world.observed(i) & reachable & ~_seen_by(world, _on(running), reachable)
         if all(a.settled or not on for a, on in zip(agents, running)) or now >= max_us:
             break
         if should_stop is not None and should_stop():
@@ -528,6 +574,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
     for t in trajectories:
         digest.update(t.tobytes())
     own_shares = [float((world.observed(i) & reachable).sum()) / reachable_cells for i in range(cfg.robots)]
+    survivors_seen = _seen_by(world, _on(running), reachable) if cfg.failures else None
     return MissionResult(
         pose_error_m=pose_error,
         pose_error_max_m=pose_error_max,
@@ -551,6 +598,10 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         reachable_area_m2=reachable_cells * occ.resolution_m ** 2,
         robot_status=[a.status if on else "failed" for a, on in zip(agents, running)],
         failed_at_s=failed_at_s,
+        coverage_survivors=None if survivors_seen is None else float(survivors_seen.sum()) / reachable_cells,
+        lost_at_failure={i: float(cells.sum()) / reachable_cells for i, cells in lost.items()},
+        recovered={i: float((cells & survivors_seen).sum()) / cells.sum() if cells.any() else None
+                   for i, cells in lost.items()},
         trajectories=trajectories,
         world=world,
         agents=agents,

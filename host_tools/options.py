@@ -145,10 +145,12 @@ def _robot_and(text: str, sep: str, form: str) -> tuple[int, float]:
 
 
 def _robot_at(opt: Opt, text: str):
-    """R@S or R@P%: a host_tools.mission.Failure."""
-    from host_tools.mission import Failure
+    """R@S, R@P% or random: a host_tools.mission.Failure (DRAWN for random)."""
+    from host_tools.mission import DRAWN, Failure
 
-    form = "R@S or R@P% (robot R, S seconds into the mission or when the team has seen P % of the area)"
+    if text == "random":
+        return DRAWN
+    form = "R@S, R@P% or random (robot R, S seconds into the mission or when the team has seen P % of the area)"
     if text.endswith("%"):
         r, share = _robot_and(text[:-1], "@", form)
         if not 0.0 < share <= 100.0:
@@ -310,7 +312,8 @@ def check_spread(spread_m: float, spread_max_m: float) -> None:
 
 FAIL = Opt("--fail", "robot_at", "robot R fails S seconds into the mission (R@S) or once the team has seen P % of the "
            "reachable area (R@P%): from then on it does nothing (no driving, radio, UWB or WiFi) and the others go "
-           "on; repeatable", repeat=True, metavar="R@S|R@P%", dest="failures")
+           "on; repeatable. random: a robot drawn from the seed fails once the team has seen a share drawn from "
+           "the seed in [50 %, 70 %]", repeat=True, metavar="R@S|R@P%|random", dest="failures")
 SLOW = Opt("--slow", "robot_share", "robot R's drive reaches only the share F (0 < F <= 1) of the speed and turn-rate "
            "limits; its firmware is not told; repeatable", repeat=True, metavar="R=F", dest="speed_factors")
 WHEEL_SLIP = Opt("--wheel-slip", "float", WHEEL_SLIP_HELP, lo=0.0, hi=1.0, default=0.0,

@@ -22,7 +22,7 @@ from firmware.comms.frame import frame_size_bytes
 from firmware.schemes.dense_baseline.keyframes import keyframe_bytes
 from firmware.params import ExplorationParams
 from firmware.schemes import build as build_scheme
-from host_tools.mission import Failure, MissionConfig, run_mission
+from host_tools.mission import DRAWN, DRAWN_COVERAGE, Failure, MissionConfig, drawn_failures, run_mission
 from host_tools.overrides import Overrides, describe, params_with, scheme_settings
 from host_tools.safe_io import atomic_open, atomic_path, strict_dumps, write_text
 
@@ -69,7 +69,8 @@ class SweepSpec:
         return [MissionConfig(map_spec=m, robots=self.robots, seed=self.first_seed + k, max_sim_s=self.max_sim_s,
                               radio=radio, strategy=s, wheel_slip_frac=self.wheel_slip_frac,
                               lidar_phase_ms=self.lidar_phase_ms, range_m=self.range_m, frames=self.frames,
-                              spread_m=self.spread_m, spread_max_m=self.spread_max_m, failures=self.failures,
+                              spread_m=self.spread_m, spread_max_m=self.spread_max_m,
+                              failures=drawn_failures(self.failures, self.first_seed + k, self.robots),
                               speed_factors=self.speed_factors)
                 for radio, s in grid for m in self.maps for k in range(self.seeds)]
 
@@ -342,7 +343,9 @@ def _world_changed(spec: dict) -> str:
         parts.append(f"starts spread at least {spec['spread_m']:g} m apart"
                      + (f", at most {spec['spread_max_m']:g} m from the nearest" if spec.get("spread_max_m") else ""))
     for robot, at_s, at_coverage in spec.get("failures", ()):
-        parts.append(f"robot {robot} fails " + (f"at {at_s:g} s" if at_s is not None else f"at {at_coverage:.0%} seen"))
+        parts.append(f"robot {robot} fails " + (f"at {at_s:g} s" if at_s is not None else f"at {at_coverage:.0%} seen")
+                     if robot != DRAWN.robot else f"a robot drawn from the seed fails at {DRAWN_COVERAGE[0]:.0%} to "
+                     f"{DRAWN_COVERAGE[1]:.0%} seen (drawn)")
     for robot, share in spec.get("speed_factors", ()):
         parts.append(f"robot {robot} at {share:g} of the speed")
     return ", ".join(parts)

@@ -3,12 +3,13 @@ MissionConfig.failures / speed_factors, `lorascout run --fail R@S --slow R=F`): 
 failed and slow robots, for any scheme."""
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pytest
 
-from host_tools.mission import Failure, MissionConfig, run_mission
+from host_tools.mission import DRAWN, Failure, MissionConfig, drawn_failures, run_mission
 from world_sim.occupancy_map import OccupancyMap
 from world_sim.world import World, WorldParams
 
@@ -100,7 +101,19 @@ def test_a_mission_goes_on_without_a_failed_robot_and_says_so():
     last_sent_by_1 = max(f.start_us for f in r.air_frames if f.sender_id == 1)
     assert last_sent_by_1 < 30_000_000
     doc = json.loads(json.dumps(r.to_json()))
-    assert doc["failures"] == [{"robot": 1, "at_s": 30.0, "failed_at_s": 30.0}] and doc["speed_factors"] == {"2": 0.5}
+    assert doc["failures"] == [{"robot": 1, "at_s": 30.0, "failed_at_s": 30.0, "lost_at_failure": pytest.approx(
+        r.lost_at_failure[1], abs=1e-6), "recovered": pytest.approx(r.recovered[1], abs=1e-6)}]
+    assert doc["speed_factors"] == {"2": 0.5}
+    # What only robot 1 had seen when it failed, from the world as it was then (the same
+    # mission cut at that moment), and how much of it the survivors saw by the end.
+    then = run_mission(dataclasses.replace(cfg, max_sim_s=30.0)).world
+    reachable = r.reachable
+    only_1 = then.observed(1) & reachable & ~then.observed(0) & ~then.observed(2)
+    survivors = (r.world.observed(0) | r.world.observed(2)) & reachable
+    assert only_1.sum() > 0
+    assert r.lost_at_failure[1] == only_1.sum() / reachable.sum()
+    assert r.recovered[1] == (only_1 & survivors).sum() / only_1.sum()
+    assert r.coverage_survivors == survivors.sum() / reachable.sum() <= r.coverage
 
 
 def test_a_robot_fails_once_the_team_has_seen_the_share_given():
@@ -110,7 +123,22 @@ def test_a_robot_fails_once_the_team_has_seen_the_share_given():
     at = r.failed_at_s[0]
     assert at == next(t for t, c in samples if c >= 0.5) and samples[0][1] < 0.5
     assert r.robot_status[0] == "failed" and at < r.t_total_s
-    assert r.to_json()["failures"] == [{"robot": 0, "at_coverage": 0.5, "failed_at_s": at}]
+    assert [{k: f[k] for k in ("robot", "at_coverage", "failed_at_s")} for f in r.to_json()["failures"]] == [
+        {"robot": 0, "at_coverage": 0.5, "failed_at_s": at}]
+
+
+def test_a_drawn_failure_is_the_seeds_and_the_same_for_every_scheme(cli):
+    drawn = {seed: drawn_failures((DRAWN,), seed, 3) for seed in range(40)}
+    assert drawn[7] == drawn_failures((DRAWN,), 7, 3)
+    for (failure,) in drawn.values():
+        assert 0 <= failure.robot < 3 and failure.at_s is None and 0.5 <= failure.at_coverage <= 0.7
+    assert {f.robot for (f,) in drawn.values()} == {0, 1, 2} and len({f.at_coverage for (f,) in drawn.values()}) > 30
+    runs = [json.loads(cli("run", "--map", "cave:3:30x30", "--robots", "3", "--seed", "7", "--scheme", scheme,
+                           "--fail", "random", "--max-sim-s", "120", "--json", "--quiet").out) for scheme in
+            ("minpos", "independent")]
+    (f,) = drawn[7]
+    for doc in runs:
+        assert (doc["failures"][0]["robot"], doc["failures"][0]["at_coverage"]) == (f.robot, f.at_coverage)
 
 
 def test_a_team_that_all_failed_ends_there():
@@ -126,6 +154,7 @@ def test_a_team_that_all_failed_ends_there():
     (["--robots", "3", "--fail", "1@10", "--fail", "1@20"], "robot 1 given twice"),
     (["--robots", "2", "--max-sim-s", "60", "--fail", "0@61"], "after the mission's end (--max-sim-s 60)"),
     (["--robots", "2", "--fail", "0@120%"], "P must be in (0, 100]"),
+    (["--robots", "3", "--fail", "random", "--fail", "1@20"], "random draws the failing robot; give it alone"),
 ])
 def test_failures_and_slow_robots_outside_the_team_or_the_mission_are_refused_before_it_runs(cli, argv, says):
     res = cli("run", "--map", "cave:3:30x30", *argv)
