@@ -96,6 +96,8 @@ class ExplorerAgent:
         hal = self.hal
         if need in ("radio", "relay"):
             return hal.has("radio") and radio_profile is not None
+        if need == "floor_plan":
+            return self.deployment is not None and self.deployment.navigable_m2 is not None
         return need in ("shared_frame", "region_map") or hal.has(need)
 
     # --- lifecycle --------------------------------------------------------------------

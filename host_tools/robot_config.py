@@ -231,10 +231,18 @@ def _check_scheme_needs(cfg: RobotConfig) -> None:
                                f"({cfg.backend('radio')}) needs the team's radio profile, one of "
                                f"{', '.join(sorted(PROFILES))}")
     for need in sorted(build_scheme(cfg.scheme, scheme_settings(cfg.overrides)).needs_of()):
+        if need in SIMULATOR_ONLY_NEEDS:
+            raise RobotConfigError(f"{cfg.path}: [robot] scheme: {cfg.scheme} needs {need} ({NEEDS[need]}), which "
+                                   "only the simulator's missions give (lorascout run)")
         kind = "radio" if need == "relay" else need
         if kind in PERIPHERALS and not cfg.fitted(kind):
             raise RobotConfigError(f"{cfg.path}: [robot] scheme: {cfg.scheme} needs {need} ({NEEDS[need]}), but "
                                    f"this robot has no [{kind}] (backend 'null')")
+
+
+# What a scheme may need that a robot's configuration cannot give: the simulator's missions
+# hand it over from the ground truth (host_tools.mission).
+SIMULATOR_ONLY_NEEDS = ("floor_plan", "region_map")
 
 
 # ---- building ----------------------------------------------------------------------------------

@@ -106,6 +106,9 @@ MISTAKES = [
     ({"params": {"wiserx.tau_enabled": False}},
      "[params] wiserx.tau_enabled=false: no scheme of this run is 'wiserx' ([robot] scheme = independent)"),
     ({"robot": {"scheme": "bayer-faigl:minpos"}}, "[robot] scheme: bayer-faigl:minpos needs radio"),
+    ({"robot": {"scheme": "divide"}}, "[robot] scheme: divide needs floor_plan (the deployment's boundary and coarse "
+                                      "floor plan (where there is navigable area), given before the start), which only "
+                                      "the simulator's missions give"),
     ({"radio": {"backend": "sim"}}, "[robot] radio_profile: missing: the [radio] (sim) needs the team's radio profile"),
     ({"radio": {"backend": "rn2483", "port": "/dev/ttyUSB0", "baud": 9600}, "robot": {"radio_profile": "eu868-g3"}},
      "[radio] baud: unknown setting; backend 'rn2483' takes port, baudrate"),

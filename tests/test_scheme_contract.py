@@ -16,6 +16,7 @@ from firmware.comms.frame import decode_frame
 from firmware.comms.schema import record_type
 from firmware.schemes import SCHEMES, build, scheme_class, specs
 from firmware.schemes.base import NEEDS, Scheme
+from firmware.services.deployment import Deployment
 from hal.lora import profile
 from hal.sim.mesh import SimMeshBus
 from host_tools.mission import MissionConfig, run_mission
@@ -46,7 +47,10 @@ def _robot(spec: str) -> tuple[ScriptedHal, ExplorerAgent]:
         hal = dataclasses.replace(hal, mesh=SimMeshBus().endpoint(0))
     if "region_map" in scheme.needs_of():
         scheme.load_region_map(())          # a building with no doorways
-    agent = ExplorerAgent(hal, scheme=scheme, radio_profile=profile("ideal-100Bps"))
+    plan = None
+    if "floor_plan" in scheme.needs_of():    # a 20 m square, all of it navigable
+        plan = Deployment((-10.0, -10.0, 10.0, 10.0), (0.0, 0.0, 0.0), 1, np.ones((20, 20)), 1.0)
+    agent = ExplorerAgent(hal, scheme=scheme, radio_profile=profile("ideal-100Bps"), deployment=plan)
     agent.setup()
     return fake, agent
 

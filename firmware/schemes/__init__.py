@@ -28,6 +28,7 @@ SCHEMES: dict[str, tuple[str, str]] = {
     "pereira": ("firmware.schemes.pereira.scheme", "Pereira"),
     "wiserx": ("firmware.schemes.wiserx.scheme", "Wiserx"),
     "mrtopomap": ("firmware.schemes.mr_topomap.scheme", "MrTopoMap"),
+    "divide": ("firmware.schemes.divide.scheme", "Divide"),
 }
 
 ALIASES: dict[str, str] = {

@@ -49,6 +49,8 @@ NEEDS = {
     "mesh": "a high-bandwidth mesh link (dense-map baselines)",
     "shared_frame": "odometry in one frame shared by the whole team",
     "region_map": "the building's doorways, loaded into the scheme before it starts (the scheme checks)",
+    "floor_plan": "the deployment's boundary and coarse floor plan (where there is navigable area), given before "
+                  "the start",
 }
 
 # Link-layer priorities for the records schemes send: higher goes first.

@@ -34,3 +34,17 @@ class Deployment:
             raise ValueError(f"a deployment's team_size must be at least 1, got {self.team_size}")
         if not self.plan_cell_m > 0:
             raise ValueError(f"a deployment's plan_cell_m must be positive, got {self.plan_cell_m}")
+
+    def to_deployment(self, x_m, y_m):
+        """Points of this robot's odometry frame in the deployment's frame."""
+        return rigid_transform(self.origin, x_m, y_m)
+
+
+def rigid_transform(pose: tuple[float, float, float], x_m, y_m):
+    """Points (scalars or arrays) of a frame whose origin lies at pose = (x_m, y_m, yaw_rad)
+    in another, in that other frame."""
+    tx, ty, yaw = pose
+    c, s = math.cos(yaw), math.sin(yaw)
+    x = np.asarray(x_m, dtype=np.float64)
+    y = np.asarray(y_m, dtype=np.float64)
+    return c * x - s * y + float(tx), s * x + c * y + float(ty)

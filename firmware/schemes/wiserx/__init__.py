@@ -15,7 +15,8 @@ coordinated by UWB ranges and WiFi angle-of-arrival bearings alone; nothing on t
 
 Not built: the PDAF over top-N AoA peaks, NLOS inflation of R (A30), window-mode updates in
 the scheme (ekf.py has them), frontier clusters with PCA split as viewpoints (the shared
-planner's waypoints are the viewpoints), the `divide` and `wiserx-lora` variants, failure
-injection and slow robots in the simulator (sections 5.5, 6.5, 6.6).
+planner's waypoints are the viewpoints), the `wiserx-lora` variant. The `divide` baseline is
+a scheme of its own (firmware/schemes/divide); failed and slow robots are the simulator's
+(host_tools.mission: --fail, --slow).
 The simulated sensing profiles it runs on are in world_sim/sensing.py.
 """

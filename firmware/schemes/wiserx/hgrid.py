@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from firmware.schemes.wiserx.params import WiserxParams
+from firmware.services.deployment import rigid_transform
 
 
 class HGrid:
@@ -47,9 +48,7 @@ class HGrid:
         self.ny = max(1, math.ceil((y1 - y0) / r - 1e-9))
         self.sx = (x1 - x0) / self.nx
         self.sy = (y1 - y0) / self.ny
-        tx, ty, yaw = to_boundary
-        self._rot = (math.cos(yaw), math.sin(yaw))
-        self._shift = (float(tx), float(ty))
+        self._to_boundary = to_boundary
         self.footprint = self._footprint(navigable_m2, plan_cell_m)
         # The disc rule's test points: kx by ky per cell.
         self.kx = max(1, math.ceil(self.sx / params.fill_lattice_m - 1e-9))
@@ -69,10 +68,7 @@ class HGrid:
     # --- geometry ---------------------------------------------------------------------
     def to_boundary(self, x_m, y_m):
         """Points of this robot's odometry frame in the boundary's frame."""
-        c, s = self._rot
-        x = np.asarray(x_m, dtype=np.float64)
-        y = np.asarray(y_m, dtype=np.float64)
-        return c * x - s * y + self._shift[0], s * x + c * y + self._shift[1]
+        return rigid_transform(self._to_boundary, x_m, y_m)
 
     def cell_of(self, bx: float, by: float) -> tuple[int, int] | None:
         """(row, col) of the cell holding a point of the boundary's frame (a point on the
