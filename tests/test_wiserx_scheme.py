@@ -332,7 +332,8 @@ def test_registered_with_its_variants_and_alias():
     assert resolve("wiserx:paper") == ("wiserx", "paper")
     assert resolve("wiserx-blind") == ("wiserx", "blind")
     assert build("wiserx").needs_of() == {"uwb", "aoa"} and build("wiserx-blind").needs_of() == frozenset()
-    assert build("wiserx").dialect is None
+    assert resolve("wiserx-lora") == ("wiserx", "lora")
+    assert build("wiserx-lora").needs_of() == {"uwb", "aoa", "radio"} and build("wiserx").dialect.name == "wiserx"
     assert build("wiserx:paper").params.fill_rule == "pts2" and build("wiserx:paper").params.hard_enabled
     assert build("wiserx").params.fill_rule == "disc" and not build("wiserx").params.hard_enabled
 

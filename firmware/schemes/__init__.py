@@ -39,6 +39,7 @@ ALIASES: dict[str, str] = {
     "meier-full": "dense:meier",
     "pereira-oracle": "pereira:oracle",
     "wiserx-blind": "wiserx:blind",
+    "wiserx-lora": "wiserx:lora",
     "mrtopomap-literal": "mrtopomap:literal",
 }
 

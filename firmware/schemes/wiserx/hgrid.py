@@ -57,6 +57,7 @@ class HGrid:
         self._ly = y0 + (np.arange(self.ny * self.ky) + 0.5) * (self.sy / self.ky)
         self._marks: dict[int, np.ndarray] = {}      # robot -> test points within r of its positions
         self._counts: dict[int, np.ndarray] = {}     # robot -> its positions per cell
+        self._heard: dict[int, np.ndarray] = {}      # robot -> cells it said it filled (row-major)
         self.tau: dict[int, bool] = {own_id: True}
         self._x: list[float] = []
         self._y: list[float] = []
@@ -137,15 +138,34 @@ class HGrid:
     def __len__(self) -> int:
         return len(self._x)
 
+    def hear(self, robot: int, cells: list[int]) -> None:
+        """A teammate's word (wiserx-lora's digest) that it filled these cells (row-major
+        numbers) by its own positions: they count as filled while it is alive."""
+        heard = self._heard.setdefault(robot, np.zeros(self.ny * self.nx, bool))
+        heard[[c for c in cells if 0 <= c < len(heard)]] = True
+        self.tau.setdefault(robot, True)
+
     def filled(self) -> np.ndarray:
-        """Per cell (ny, nx): filled under the fill rule by live robots' positions."""
-        live = [k for k in self._marks if self._counting(k)] if self.p.fill_rule == "disc" else \
-            [k for k in self._counts if self._counting(k)]
-        if not live:
+        """Per cell (ny, nx): filled under the fill rule by live robots' positions, or heard
+        filled from a live robot."""
+        out = self._filled_by([k for k in self._marks if self._counting(k)] if self.p.fill_rule == "disc" else
+                              [k for k in self._counts if self._counting(k)])
+        for k, heard in self._heard.items():
+            if self._counting(k):
+                out |= heard.reshape(self.ny, self.nx)
+        return out
+
+    def own_filled(self) -> np.ndarray:
+        """Per cell (ny, nx): filled under the fill rule by this robot's own positions."""
+        return self._filled_by([self.own_id] if self.own_id in (self._marks if self.p.fill_rule == "disc"
+                                                                else self._counts) else [])
+
+    def _filled_by(self, robots: list[int]) -> np.ndarray:
+        if not robots:
             return np.zeros((self.ny, self.nx), bool)
         if self.p.fill_rule == "pts2":
-            return sum(self._counts[k] for k in live) >= 2
-        marked = np.logical_or.reduce([self._marks[k] for k in live])
+            return sum(self._counts[k] for k in robots) >= 2
+        marked = np.logical_or.reduce([self._marks[k] for k in robots])
         share = marked.reshape(self.ny, self.ky, self.nx, self.kx).mean(axis=(1, 3))
         return share >= self.p.fill_disc_share - 1e-12
 

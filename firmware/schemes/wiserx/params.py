@@ -115,6 +115,12 @@ class WiserxParams:
     commit_share: float = number(0.5, '', 0.0, 1.0, 'a target is kept until its remaining path is this share of its first')
     relative_sensing: bool = flag(True, 'use UWB and AoA (False: wiserx-blind)')
 
+    # --- the LoRa digest (5.6; the `lora` variant) ---
+    lora_digest: bool = flag(False, "send the own filled hgrid cells over LoRa, 64 a record (True: wiserx-lora)")
+    # The spec's 30 s, less: a digest late in its TDMA slot must not read as 30 s of silence
+    # (the heartbeat, every 10 s, keeps a robot alive as well).
+    digest_period_s: float = number(20.0, 's', 1.0, 3600.0, 'one digest record (64 cells) this often, round robin')
+
     def __post_init__(self) -> None:
         check_declared(self)
         if self.soft_fill > self.hard_fill:

@@ -1,6 +1,6 @@
 """WiSER-X (Jadhav et al., arXiv 2412.19876; ../shared/schemes/wiserx.md; issue 24) as a
 scheme: coordination from UWB ranges and WiFi AoA bearings alone. Nothing goes on the
-LoRa air (no radio in its needs, no dialect).
+LoRa air, except in the `lora` variant (its dialect, records.py).
 
 Per robot, in its own odometry frame:
 
@@ -20,7 +20,11 @@ Per robot, in its own odometry frame:
 Variants: `complete` (default; the spec's fix of section 5.8: disc fill, 25 m^2 footprint,
 soft 0.85, hard off; kappa1 = 0.8 r), `paper` (the authors' >= 2 points per cell, 5 m^2
 footprint, soft 0.85, hard 0.95, kappa1 = r / 2), `blind` (the same code without relative sensing: beta = 1, no loss, fill from
-own positions only; needs neither UWB nor AoA).
+own positions only; needs neither UWB nor AoA), `lora` (complete, plus wiserx.md 5.6's digest
+over LoRa: every digest_period_s one record of 64 hgrid cells this robot filled by its own
+positions, round robin; a teammate heard on LoRa at all, its heartbeat included, is alive,
+and the cells it said it filled count as filled while it is; the spec's pseudo-points for
+the loss term are not built).
 
 Deviations from the paper, on purpose: viewpoints are the shared planner's waypoints
 (reachable places with unknown in LiDAR view) rather than the centre and extremes of PCA-split
@@ -35,10 +39,12 @@ import math
 import numpy as np
 
 from firmware.scheduler import Task
-from firmware.schemes.base import Candidate, OwnPlaces, PlanningView, Scheme, Services, cost_along_graph
+from firmware.schemes.base import (PRIORITY_INFO, Candidate, OwnPlaces, PlanningView, Scheme, Services,
+                                   cost_along_graph)
 from firmware.schemes.wiserx import utility as U
 from firmware.schemes.wiserx.hgrid import HGrid
 from firmware.schemes.wiserx.params import WiserxParams
+from firmware.schemes.wiserx.records import CELLS_PER_CHUNK, DIALECT, MAX_CHUNKS, cells_of_chunk, chunk_fields
 from firmware.schemes.wiserx.relpos import COUNTERS, RelPos
 from hal.samples import OdometrySample
 
@@ -54,10 +60,13 @@ class Wiserx(Scheme):
         "paper": "the paper's hgrid: >= 2 positions per cell over a 5 m2 footprint, soft 0.85 and hard 0.95",
         "blind": "the same without relative sensing (no loss, beta = 1, own positions only): the apples-to-apples "
                  "baseline",
+        "lora": "complete, plus an 11-byte digest of the own filled hgrid cells over LoRa every 30 s: teammates out "
+                "of UWB and WiFi reach stay alive and their fill counts",
     }
     default_variant = "complete"
     needs = frozenset({"uwb", "aoa"})
     params_type = WiserxParams
+    dialect = DIALECT          # sent by the `lora` variant only
 
     @classmethod
     def default_params(cls, variant: str) -> WiserxParams:
@@ -65,6 +74,8 @@ class Wiserx(Scheme):
             return WiserxParams.paper()
         if variant == "blind":
             return WiserxParams(relative_sensing=False)
+        if variant == "lora":
+            return WiserxParams(lora_digest=True)
         return WiserxParams()
 
     def __init__(self, variant: str = "", params: WiserxParams | None = None) -> None:
@@ -72,7 +83,8 @@ class Wiserx(Scheme):
         self.params = params if params is not None else self.default_params(self.variant)
 
     def needs_of(self) -> frozenset[str]:
-        return self.needs if self.params.relative_sensing else frozenset()
+        return (self.needs if self.params.relative_sensing else frozenset()) | \
+            (frozenset({"radio"}) if self.params.lora_digest else frozenset())
 
     # --- setup ----------------------------------------------------------------------------
     def attach(self, services: Services) -> None:
@@ -96,10 +108,15 @@ class Wiserx(Scheme):
         self.soft = self.hard = False
         self._first_us = {"soft": -1, "hard": -1, "finished": -1}
         self._count = {"waypoints_invalid": 0, "waypoints_dropped_hard": 0, "estimates_outside": 0,
-                       "estimates_recorded": 0, "committed_cycles": 0}
+                       "estimates_recorded": 0, "committed_cycles": 0, "digests_sent": 0, "digests_heard": 0,
+                       "digests_other_grid": 0}
+        self._next_chunk = 0
 
     def tasks(self) -> list[Task]:
-        return [Task("relsense", RELSENSE_HZ, self._relsense)]
+        tasks = [Task("relsense", RELSENSE_HZ, self._relsense)]
+        if self.params.lora_digest:
+            tasks.append(Task("hgrid_digest", 1.0 / self.params.digest_period_s, self._send_digest))
+        return tasks
 
     # --- sensing and recording ------------------------------------------------------------
     def _relsense(self, now_us: int) -> None:
@@ -108,6 +125,8 @@ class Wiserx(Scheme):
         bearings = s.aoa.bearings() if s.aoa is not None else ()
         if p.relative_sensing:
             self.relpos.feed(ranges, bearings, s.pose_at)
+            if p.lora_digest:
+                self._heard_on_lora()
             self.relpos.check_silence(now_us)
             for peer, track in self.relpos.tracks.items():
                 self.hgrid.set_alive(peer, track.alive)
@@ -115,6 +134,43 @@ class Wiserx(Scheme):
             self._record(now_us)
             period_us = round(p.insert_period_s * 1e6)
             self._next_insert_us = (now_us // period_us + 1) * period_us
+
+    # --- the LoRa digest (the `lora` variant, wiserx.md 5.6) --------------------------------
+    def _heard_on_lora(self) -> None:
+        """A teammate heard on LoRa (any frame: its heartbeat every 10 s, its digests) since
+        its last UWB or AoA sample is alive: out of UWB and WiFi reach is not failed."""
+        for peer, member in self.s.roster.members().items():
+            track = self.relpos.track(peer)
+            if track.heard_us is None or member.heard_us > track.heard_us:
+                track.heard(member.heard_us)
+
+    def _n_chunks(self) -> int:
+        return min(MAX_CHUNKS, -(-self.hgrid.nx * self.hgrid.ny // CELLS_PER_CHUNK))
+
+    def _send_digest(self, now_us: int) -> None:
+        """One chunk of the cells this robot filled by its own positions, round robin."""
+        if self.s.send is None:
+            return
+        chunk, n = self._next_chunk, self._n_chunks()
+        self._next_chunk = (chunk + 1) % n
+        values = {"sender_id": self.s.robot_id, "chunk": chunk, "chunks_m1": n - 1,
+                  "done": int(self._first_us["finished"] >= 0), "fill_pct": int(round(100 * self.fill)),
+                  **chunk_fields(self.hgrid.own_filled().ravel(), chunk)}
+        if self.s.send("hgrid", values, PRIORITY_INFO, key=("hgrid", chunk)):
+            self._count["digests_sent"] += 1
+
+    def on_record(self, rtype: str, values, now_us: int) -> None:
+        if rtype != "hgrid" or values["sender_id"] == self.s.robot_id:
+            return
+        if values["chunks_m1"] + 1 != self._n_chunks():
+            self._count["digests_other_grid"] += 1      # a robot told of another boundary
+            return
+        self._count["digests_heard"] += 1
+        self.hgrid.hear(values["sender_id"], cells_of_chunk(values["chunk"], values["bitmap_hi"], values["bitmap_lo"],
+                                                            self.hgrid.nx * self.hgrid.ny))
+
+    def has_news(self) -> bool:
+        return bool(self.s.queued("hgrid")) if self.params.lora_digest else False
 
     def _record(self, now_us: int) -> None:
         """This robot's position, and each teammate's estimate updated within two insertion
