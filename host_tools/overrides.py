@@ -40,6 +40,10 @@ def _parse_int(text: str) -> int:
 _PARSERS = {"bool": _parse_bool, "int": _parse_int, "float": float}
 
 
+def _a(kind: str) -> str:
+    return "an" if kind == "int" else "a"
+
+
 def scheme_fields(scheme: str) -> dict[str, dataclasses.Field]:
     """The parameters `--set SCHEME.NAME=VALUE` takes for a scheme (registry name), by name;
     ValueError for an unknown scheme or one without parameters of its own."""
@@ -71,7 +75,8 @@ def _parse_scheme_override(item: str, name: str, text: str) -> tuple[str, bool |
     try:
         value = text if kind == "choice" else _PARSERS[kind](text)
     except ValueError:
-        raise ValueError(f"{item!r}: {name} takes {'an' if kind == 'int' else 'a'} {kind}, not {text!r} ({declared.range_text(f, name)})") from None
+        raise ValueError(f"{item!r}: {name} takes {_a(kind)} {kind}, not {text!r} "
+                         f"({declared.range_text(f, name)})") from None
     try:
         declared.check_value(f, value, scheme)
     except ValueError as exc:
@@ -97,7 +102,7 @@ def parse_override(item: str) -> tuple[str, bool | int | float | str]:
     try:
         value = _PARSERS[kind](text)
     except ValueError:
-        raise ValueError(f"{item!r}: {name} takes {'an' if kind == 'int' else 'a'} {kind}, not {text!r} ({param_range(name)})") from None
+        raise ValueError(f"{item!r}: {name} takes {_a(kind)} {kind}, not {text!r} ({param_range(name)})") from None
     try:
         check_param(name, value)
     except ParamError as exc:
@@ -191,7 +196,8 @@ def _scheme_table(scheme: str, table: dict) -> list[tuple[str, bool | int | floa
     pairs = []
     for name, value in table.items():
         if name not in fields:
-            raise ValueError(f"{scheme}.{name}: scheme {scheme!r} has no parameter {name!r} (it has: {', '.join(fields)})")
+            raise ValueError(f"{scheme}.{name}: scheme {scheme!r} has no parameter {name!r} "
+                             f"(it has: {', '.join(fields)})")
         f = fields[name]
         declared.check_value(f, value, scheme)
         pairs.append((f"{scheme}.{name}", float(value) if declared.kind(f) == "float" else value))

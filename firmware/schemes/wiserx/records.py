@@ -25,7 +25,8 @@ HGRID = RecordType(
     1, "hgrid", 11,
     (
         SENDER,
-        Field("chunk", 4, unit="index", doc="which 64 cells of the boundary's grid, row-major: 64 chunk .. 64 chunk + 63"),
+        Field("chunk", 4, unit="index",
+              doc="which 64 cells of the boundary's grid, row-major: 64 chunk .. 64 chunk + 63"),
         Field("chunks_m1", 4, unit="count - 1", doc="how many chunks the sender's grid has, less one"),
         Field("done", 1, unit="bool", doc="the sender stopped (soft or hard termination, or nothing left)"),
         Field("fill_pct", 7, unit="%", hi=100, doc="the sender's hgrid fill, all robots it counts"),
