@@ -131,6 +131,22 @@ def lines_of_sight(state: np.ndarray, i0: np.ndarray, j0: np.ndarray, i1: np.nda
     return (walls == 0) | (steps == 0)
 
 
+def walls_crossed(state: np.ndarray, i0: int, j0: int, i1: int, j1: int) -> int:
+    """How many walls (runs of OCCUPIED cells) the straight segment between two cells of a
+    state grid crosses, counted up to where it leaves the grid (cells sampled as
+    lines_of_sight samples them)."""
+    steps = max(abs(i1 - i0), abs(j1 - j0))
+    t = np.arange(steps + 1) * (1.0 / max(steps, 1))
+    ii = np.round(i0 + (i1 - i0) * t).astype(np.int64)
+    jj = np.round(j0 + (j1 - j0) * t).astype(np.int64)
+    inside = (ii >= 0) & (ii < state.shape[0]) & (jj >= 0) & (jj < state.shape[1])
+    if not inside.all():
+        stop = int(np.argmin(inside)) if inside[0] else 0
+        ii, jj = ii[:stop], jj[:stop]
+    wall = state[ii, jj] == kernels.OCCUPIED
+    return int(np.count_nonzero(wall[1:] & ~wall[:-1]) + (1 if len(wall) and wall[0] else 0))
+
+
 def cell_known(local_map: LocalMap, i: int, j: int) -> bool:
     """Is the cell observed (free or wall) in the local map, rather than unknown?"""
     p = local_map.p

@@ -284,9 +284,10 @@ class TeammateEkf:
             self.stamp_us = int(stamp_us)
 
     def observe(self, stamp_us: int, own_xy, range_m: float | None = None,
-                bearing_rad: float | None = None) -> Outcome:
+                bearing_rad: float | None = None, walls: int = 0) -> Outcome:
         """Sequential mode: one range, one bearing (in this robot's odometry frame,
-        map_bearing) or both of one stamp, with this robot's position at that stamp."""
+        map_bearing) or both of one stamp, with this robot's position at that stamp; walls:
+        how many walls lie in between (EkfParams.noise)."""
         if range_m is None and bearing_rad is None:
             return Outcome("nothing")
         p = self.params
@@ -309,7 +310,7 @@ class TeammateEkf:
             rows, z = (RANGE,), (range_m,)
         else:
             rows, z = (BEARING,), (bearing_rad,)
-        return self._update(stamp_us, own_xy, rows, z, self._variances(rows, 1, 1),
+        return self._update(stamp_us, own_xy, rows, z, self._variances(rows, 1, 1, walls),
                             restart=(range_m, bearing_rad) if len(rows) == 2 else None)
 
     def observe_window(self, stamp_us: int, own_xy, ranges_m, bearings_rad) -> Outcome:
@@ -334,10 +335,10 @@ class TeammateEkf:
         return self._update(int(stamp_us), own_xy, rows, z, self._variances(rows, n_r, n_b),
                             restart=(rho, psi) if len(rows) == 2 else None)
 
-    def _variances(self, rows: tuple[int, ...], n_ranges: int, n_bearings: int) -> np.ndarray:
-        """R of a mean of n_ranges ranges and n_bearings bearings."""
-        p = self.params
-        var = {RANGE: p.range_std_m ** 2 / max(n_ranges, 1), BEARING: p.bearing_std_rad ** 2 / max(n_bearings, 1)}
+    def _variances(self, rows: tuple[int, ...], n_ranges: int, n_bearings: int, walls: int = 0) -> np.ndarray:
+        """R of a mean of n_ranges ranges and n_bearings bearings, with walls in between."""
+        range_std, bearing_std = self.params.noise(walls)
+        var = {RANGE: range_std ** 2 / max(n_ranges, 1), BEARING: bearing_std ** 2 / max(n_bearings, 1)}
         return np.array([var[k] for k in rows])
 
     def _update(self, stamp_us: int, own_xy, rows, z, variances, restart) -> Outcome:

@@ -36,6 +36,7 @@ from firmware.schemes.wiserx.params import EkfParams, WiserxParams
 from hal.samples import AoaBearing, UwbRange
 
 PoseAt = Callable[[int], "tuple[float, float, float] | None"]
+WallsBetween = Callable[[tuple[float, float], tuple[float, float]], int]
 
 # Counters every track keeps (RelPos.counts sums them; stable keys for the mission report).
 COUNTERS = ("ranges", "ranges_accepted", "ranges_held_back", "bearings", "bearings_accepted",
@@ -67,13 +68,15 @@ class Estimate:
 
 
 def polar_fix(range_m: float, psi_rad: float, own_xy: tuple[float, float],
-              params: EkfParams) -> tuple[np.ndarray, np.ndarray]:
+              params: EkfParams, walls: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The position a range and a (frame) bearing put a teammate at, and its 2 x 2
-    covariance from the range and bearing noise (first order)."""
+    covariance from the range and bearing noise (first order; EkfParams.noise with walls in
+    between)."""
     c, s = math.cos(psi_rad), math.sin(psi_rad)
     z = np.array([own_xy[0] + range_m * c, own_xy[1] + range_m * s])
     J = np.array([[c, -range_m * s], [s, range_m * c]])
-    return z, J @ np.diag([params.range_std_m ** 2, params.bearing_std_rad ** 2]) @ J.T
+    range_std, bearing_std = params.noise(walls)
+    return z, J @ np.diag([range_std ** 2, bearing_std ** 2]) @ J.T
 
 
 class PeerTrack:
@@ -100,10 +103,11 @@ class PeerTrack:
         self.heard_us = stamp_us if self.heard_us is None else max(self.heard_us, stamp_us)
 
     def observe(self, stamp_us: int, own_pose: tuple[float, float, float], range_m: float | None,
-                body_bearing_rad: float | None) -> str:
+                body_bearing_rad: float | None, walls: int = 0) -> str:
         """One range, one bearing (this robot's body frame) or both of one stamp, with this
-        robot's pose at that stamp. Returns what became of it: the EKF's outcome status, or
-        "held_back" / "off_median" when a rule refused everything."""
+        robot's pose at that stamp and the walls in between (EkfParams.noise). Returns what
+        became of it: the EKF's outcome status, or "held_back" / "off_median" when a rule
+        refused everything."""
         x, y, yaw = own_pose
         psi = None
         if range_m is not None:
@@ -119,9 +123,9 @@ class PeerTrack:
             return "held_back" if body_bearing_rad is None else "off_median"
         was_tracking = self.ekf.tracking
         if was_tracking and range_m is not None and psi is not None and stamp_us >= self.ekf.stamp_us:
-            out = self._converted_update(stamp_us, (x, y), range_m, psi)
+            out = self._converted_update(stamp_us, (x, y), range_m, psi, walls)
         else:
-            out = self.ekf.observe(stamp_us, (x, y), range_m, psi)
+            out = self.ekf.observe(stamp_us, (x, y), range_m, psi, walls)
         if out.status in ("started", "accepted") or (out.status == "restarted" and self.ekf.tracking):
             self.updated_us = stamp_us
             if range_m is not None:
@@ -139,7 +143,8 @@ class PeerTrack:
             self._residuals.clear()
         return out.status
 
-    def _converted_update(self, stamp_us: int, own_xy: tuple[float, float], range_m: float, psi: float) -> Outcome:
+    def _converted_update(self, stamp_us: int, own_xy: tuple[float, float], range_m: float, psi: float,
+                          walls: int = 0) -> Outcome:
         """A range and a bearing of one stamp as one position measurement (the converted
         measurement filter): z = own + rho (cos psi, sin psi), R = J diag(sigma_r^2,
         sigma_psi^2) J^T, a linear update of the position, gated at chi-square 2 dof. The
@@ -150,7 +155,7 @@ class PeerTrack:
         profile). Three rejections in a row restart the track from the measurement."""
         e, ep = self.ekf, self.ekf.params
         e.predict_to(stamp_us)
-        z, R = polar_fix(range_m, psi, own_xy, ep)
+        z, R = polar_fix(range_m, psi, own_xy, ep, walls)
         P = e.P
         nu = z - e.x[:2]
         S = P[:2, :2] + R
@@ -258,10 +263,13 @@ class RelPos:
             t = self.tracks[peer_id] = PeerTrack(peer_id, self.p, self.ekf_params)
         return t
 
-    def feed(self, ranges: Iterable[UwbRange], bearings: Iterable[AoaBearing], pose_at: PoseAt) -> list[tuple[int, str]]:
+    def feed(self, ranges: Iterable[UwbRange], bearings: Iterable[AoaBearing], pose_at: PoseAt,
+             walls_between: WallsBetween | None = None) -> list[tuple[int, str]]:
         """The samples in time order, a range and a bearing of one teammate with one stamp
-        as one update; only the strongest AoA peak (rank 0) is used. Returns (peer, status)
-        per update."""
+        as one update; only the strongest AoA peak (rank 0) is used. walls_between(own_xy,
+        teammate_xy): the walls the own map shows between the robot and where the track
+        predicts the teammate at the sample's time (None: taken as none). Returns (peer,
+        status) per update."""
         by_key: dict[tuple[int, int], list] = {}
         for r in ranges:
             if r.peer_id != self.own_id and math.isfinite(r.range_m) and r.range_m > 0.0:
@@ -277,7 +285,12 @@ class RelPos:
                 continue
             t = self.track(peer)
             t.heard(stamp_us)
-            out.append((peer, t.observe(stamp_us, pose, rho, phi)))
+            walls = 0
+            if walls_between is not None and t.ekf.tracking and stamp_us >= t.ekf.stamp_us:
+                dt = (stamp_us - t.ekf.stamp_us) * 1e-6
+                xj = t.ekf.x
+                walls = walls_between((pose[0], pose[1]), (xj[0] + xj[2] * dt, xj[1] + xj[3] * dt))
+            out.append((peer, t.observe(stamp_us, pose, rho, phi, walls)))
         return out
 
     def check_silence(self, now_us: int) -> list[int]:

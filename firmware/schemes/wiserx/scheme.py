@@ -46,6 +46,7 @@ from firmware.schemes.wiserx.hgrid import HGrid
 from firmware.schemes.wiserx.params import WiserxParams
 from firmware.schemes.wiserx.records import CELLS_PER_CHUNK, DIALECT, MAX_CHUNKS, cells_of_chunk, chunk_fields
 from firmware.schemes.wiserx.relpos import COUNTERS, RelPos
+from firmware.services.grid_paths import walls_crossed
 from hal.samples import OdometrySample
 
 RELSENSE_HZ = 10.0
@@ -124,7 +125,7 @@ class Wiserx(Scheme):
         ranges = s.uwb.ranges() if s.uwb is not None else ()
         bearings = s.aoa.bearings() if s.aoa is not None else ()
         if p.relative_sensing:
-            self.relpos.feed(ranges, bearings, s.pose_at)
+            self.relpos.feed(ranges, bearings, s.pose_at, self._walls_between() if p.nlos_from_map else None)
             if p.lora_digest:
                 self._heard_on_lora()
             self.relpos.check_silence(now_us)
@@ -134,6 +135,20 @@ class Wiserx(Scheme):
             self._record(now_us)
             period_us = round(p.insert_period_s * 1e6)
             self._next_insert_us = (now_us // period_us + 1) * period_us
+
+    def _walls_between(self):
+        """walls_between(own_xy, other_xy) on the local map as it is now: the walls it shows
+        on the straight line, up to the window's edge (A30)."""
+        lm = self.s.local_map
+        state = None
+
+        def walls_between(a: tuple[float, float], b: tuple[float, float]) -> int:
+            nonlocal state
+            if state is None:
+                state = lm.state_of(0, lm.n, 0, lm.n)
+            (i0, j0), (i1, j1) = lm.cell_of(*a), lm.cell_of(*b)
+            return walls_crossed(state, i0, j0, i1, j1)
+        return walls_between
 
     # --- the LoRa digest (the `lora` variant, wiserx.md 5.6) --------------------------------
     def _heard_on_lora(self) -> None:
