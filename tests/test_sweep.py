@@ -249,8 +249,9 @@ def test_a_sweep_with_a_failing_and_a_slow_robot_runs_them_and_resumes_only_thos
     out, _ = capsys.readouterr()
     assert "robot 1 fails at 5 s, robot 2 fails at 50% seen, robot 0 at 0.5 of the speed" in out
     (report,) = [json.loads(line) for line in (tmp_path / PARTIAL_NAME).read_text().splitlines()]
-    assert report["robot_status"][1] == "failed" and report["failures"][0] == {"robot": 1, "at_s": 5.0,
-                                                                              "failed_at_s": 5.0}
+    assert report["robot_status"][1] == "failed"
+    assert {k: report["failures"][0][k] for k in ("robot", "at_s", "failed_at_s")} == {"robot": 1, "at_s": 5.0,
+                                                                                       "failed_at_s": 5.0}
     assert report["speed_factors"] == {"0": 0.5}
     assert cli_main(argv) == 0                                   # no failure: another trial
     assert "resuming: 0 trials done earlier, 1 to run" in capsys.readouterr().err
@@ -258,6 +259,10 @@ def test_a_sweep_with_a_failing_and_a_slow_robot_runs_them_and_resumes_only_thos
     assert "resuming: 1 trials done earlier, 0 to run" in capsys.readouterr().err
     assert cli_main(argv + ["--fail", "3@5"]) == 2
     assert "robot 3 is not in the team of 3" in capsys.readouterr().err
+    assert cli_main(argv + ["--fail", "random"]) == 0             # the seed draws the robot and the moment
+    assert "a robot drawn from the seed fails at 50% to 70% seen" in capsys.readouterr().out
+    assert cli_main(argv + ["--fail", "random"]) == 0
+    assert "resuming: 1 trials done earlier, 0 to run" in capsys.readouterr().err
 
 
 def test_a_sweep_resumed_from_a_trials_file_without_paths_draws_its_figures(tmp_path, capsys):
