@@ -169,6 +169,9 @@ class MissionResult:
     # (a failed robot's map is lost with it), and per failed robot the share of the area only
     # it had seen when it failed, and how much of that the survivors saw by the end.
     coverage_survivors: float | None = None
+    # Per robot: the share of the reachable area its own LiDAR observed (a slow robot's share
+    # against the others', issue 24).
+    observed_share: list[float] = field(default_factory=list)
     lost_at_failure: dict[int, float] = field(default_factory=dict)
     recovered: dict[int, float | None] = field(default_factory=dict)
 
@@ -208,6 +211,7 @@ class MissionResult:
             "coverage": round(self.coverage, 6),
             "coverage_raw_component": round(self.coverage_raw, 6),
             "overlap": round(self.overlap, 6),
+            "observed_share": [round(s, 6) for s in self.observed_share],
             "path_length_m": [round(p, 3) for p in self.path_length_m],
             "start_poses": [[round(x, 3), round(y, 3), round(yaw, 4)] for x, y, yaw in self.start_poses],
             "t_total_s": round(self.t_total_s, 3),
@@ -579,6 +583,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         pose_error_m=pose_error,
         pose_error_max_m=pose_error_max,
         overlap=sum(own_shares) - coverage,
+        observed_share=own_shares,
         radio=radio_metrics(air_frames, channel, agents, mesh, world.now_us),
         air_log_sha256=air_log_digest(air_frames),
         config=cfg,

@@ -104,6 +104,7 @@ def test_a_mission_goes_on_without_a_failed_robot_and_says_so():
     assert doc["failures"] == [{"robot": 1, "at_s": 30.0, "failed_at_s": 30.0, "lost_at_failure": pytest.approx(
         r.lost_at_failure[1], abs=1e-6), "recovered": pytest.approx(r.recovered[1], abs=1e-6)}]
     assert doc["speed_factors"] == {"2": 0.5}
+    assert len(doc["observed_share"]) == 3 and sum(r.observed_share) - r.coverage == pytest.approx(r.overlap)
     # What only robot 1 had seen when it failed, from the world as it was then (the same
     # mission cut at that moment), and how much of it the survivors saw by the end.
     then = run_mission(dataclasses.replace(cfg, max_sim_s=30.0)).world
