@@ -311,8 +311,8 @@ COVERAGE_TARGET = 0.99
 
 
 def shortfalls(results: list[dict]) -> list[dict]:
-    """Every trial, on any radio, that covered less than COVERAGE_TARGET or did not end with
-    every robot stopping by itself, in table order."""
+    """Every trial, on any radio, that covered less than COVERAGE_TARGET or did not end
+    "complete", in table order."""
     return [{"map": r["map"], "strategy": r["strategy"], "radio": r["radio"], "seed": r["seed"],
              "coverage": coverage_floor(r["coverage"]), "termination": r["termination"],
              "longest_path_m": round(max(r["path_length_m"]), 1)}
@@ -510,8 +510,9 @@ def markdown(t: dict) -> str:
     if t.get("interrupted"):
         lines = [f"**{t['interrupted']}**", ""] + lines
     sf = t["shortfalls"]
-    lines += ["", f"Trials that covered less than {sf['coverage_target']} or did not end with every robot "
-              f"stopping by itself: {len(sf['short'])} of {sf['trials']}" + (":" if sf["short"] else ".")]
+    lines += ["", f"Trials that covered less than {sf['coverage_target']} or did not end `complete` (every robot "
+              f"stopped by itself with no frontier left that its body could reach): {len(sf['short'])} of "
+              f"{sf['trials']}" + (":" if sf["short"] else ".")]
     if sf["short"]:
         lines += ["", "| radio | map | strategy | seed | coverage | termination | longest path [m] |",
                   "|---|---|---|---:|---:|---|---:|"]

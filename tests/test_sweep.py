@@ -66,7 +66,7 @@ def test_local_sweep_writes_tables_and_figures(tmp_path):
     assert "eu868-g3 | cave:4:40x40 | minpos |" in markdown(t)
     sf = t["shortfalls"]
     assert sf["trials"] == 6 and sf["short"] == shortfalls(results)
-    assert f"stopping by itself: {len(sf['short'])} of 6" in markdown(t)
+    assert f"that its body could reach): {len(sf['short'])} of 6" in markdown(t)
     for name in [f"paths_cave_4_40x40_{s}.png" for s in SPEC.strategies] + ["paths_overview.png", "p_max_by_trial.png"]:
         assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
     # Worker processes give the missions the same results as running them here.
