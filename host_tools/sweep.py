@@ -345,7 +345,7 @@ def _world_changed(spec: dict) -> str:
     for robot, at_s, at_coverage in spec.get("failures", ()):
         parts.append(f"robot {robot} fails " + (f"at {at_s:g} s" if at_s is not None else f"at {at_coverage:.0%} seen")
                      if robot != DRAWN.robot else f"a robot drawn from the seed fails at {DRAWN_COVERAGE[0]:.0%} to "
-                     f"{DRAWN_COVERAGE[1]:.0%} seen (drawn)")
+                     f"{DRAWN_COVERAGE[1]:.0%} seen")
     for robot, share in spec.get("speed_factors", ()):
         parts.append(f"robot {robot} at {share:g} of the speed")
     return ", ".join(parts)
@@ -452,8 +452,30 @@ def tables(spec: SweepSpec, results: list[dict]) -> dict:
                     "receptions_lost_fraction": round(1 - fates.get("received", 0) / heard, 4) if heard else None,
                 })
     return {"spec": asdict(spec), "table3_p_max": table3, "table4_communication": table4,
-            "comparisons": comparisons, "radio_cost": radio_cost,
+            "comparisons": comparisons, "radio_cost": radio_cost, "failures": _failure_rows(spec, by),
             "shortfalls": {"coverage_target": COVERAGE_TARGET, "trials": trial_count, "short": short}}
+
+
+def _failure_rows(spec: SweepSpec, by: dict) -> list[dict]:
+    """With failing robots: per map and strategy, the medians of the survivors' coverage, of
+    the share of the area only the failed robot had seen, and of how much of it the survivors
+    saw by the end (trials from before these were reported are left out)."""
+    rows = []
+    for m in spec.maps:
+        for s in spec.strategies:
+            trials = [t for t in by.get((m, s), []) if t.get("coverage_survivors") is not None]
+            if not trials:
+                continue
+            failures = [f for t in trials for f in t["failures"]]
+            seen = [f["recovered"] for f in failures if f.get("recovered") is not None]
+            rows.append({"map": trials[0]["map"], "strategy": s, "trials": len(trials),
+                         "failed": sum(f.get("failed_at_s") is not None for f in failures),
+                         "coverage_survivors_median": round(statistics.median(t["coverage_survivors"]
+                                                                              for t in trials), 4),
+                         "lost_at_failure_median": round(statistics.median(f.get("lost_at_failure") or 0.0
+                                                                           for f in failures), 4),
+                         "recovered_median": round(statistics.median(seen), 3) if seen else None})
+    return rows
 
 
 def markdown(t: dict) -> str:
@@ -486,6 +508,16 @@ def markdown(t: dict) -> str:
         lines.append(f"| {r['strategy']} | {r['packet_bytes']} | {r['radio_Bps_per_robot_mean']:.1f} / "
                      f"{r['radio_Bps_per_robot_peak_10s']:.1f} | {r['mesh_Bps_per_robot_mean']:.0f} | "
                      f"{r['duty_cycle_violations']} | {r['robots']} |")
+    if t.get("failures"):
+        lines += ["", "Failing robots (medians over the trials): the survivors' coverage (a failed robot's map is "
+                  "lost with it), the share of the area only the failed robot had seen when it failed, and how "
+                  "much of that the survivors saw by the end:", "",
+                  "| map | strategy | robots failed | survivors' coverage | only the failed robot had seen | "
+                  "survivors saw of it |", "|---|---|---|---:|---:|---:|"]
+        for f in t["failures"]:
+            seen = "-" if f["recovered_median"] is None else f"{f['recovered_median']:.2f}"
+            lines.append(f"| {f['map']} | {f['strategy']} | {f['failed']} in {f['trials']} trials | "
+                         f"{f['coverage_survivors_median']:.4f} | {f['lost_at_failure_median']:.4f} | {seen} |")
     if t["comparisons"]:
         lines += ["", "| map | p_max ratio | value | 90 % interval | bound | holds |", "|---|---|---:|---|---|:---:|"]
         for c in t["comparisons"]:

@@ -248,6 +248,7 @@ def test_a_sweep_with_a_failing_and_a_slow_robot_runs_them_and_resumes_only_thos
     assert cli_main(argv + changed) == 0
     out, _ = capsys.readouterr()
     assert "robot 1 fails at 5 s, robot 2 fails at 50% seen, robot 0 at 0.5 of the speed" in out
+    assert "| map | strategy | robots failed | survivors' coverage |" in out
     (report,) = [json.loads(line) for line in (tmp_path / PARTIAL_NAME).read_text().splitlines()]
     assert report["robot_status"][1] == "failed"
     assert {k: report["failures"][0][k] for k in ("robot", "at_s", "failed_at_s")} == {"robot": 1, "at_s": 5.0,
