@@ -11,7 +11,6 @@ last looks) it keeps, of its own waypoints:
 from __future__ import annotations
 
 import numpy as np
-
 from scipy.spatial import cKDTree
 
 from firmware.schemes.base import Candidate, OwnPlaces, PlanningView, Scheme, Services, cost_along_graph

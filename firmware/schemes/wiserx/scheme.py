@@ -54,14 +54,14 @@ RELSENSE_HZ = 10.0
 
 class Wiserx(Scheme):
     name = "wiserx"
-    doc = "WiSER-X: teammates located by UWB range and WiFi AoA alone, nothing sent over LoRa"
+    doc = "WiSER-X: teammates located by UWB range and WiFi AoA alone, nothing sent over LoRa (but in `lora`)"
     variants = {
         "complete": "overlap loss from UWB/AoA teammate tracks; soft termination on a disc-filled hgrid over a "
                     "25 m2 footprint, no hard stop (the spec's fix)",
         "paper": "the paper's hgrid: >= 2 positions per cell over a 5 m2 footprint, soft 0.85 and hard 0.95",
         "blind": "the same without relative sensing (no loss, beta = 1, own positions only): the apples-to-apples "
                  "baseline",
-        "lora": "complete, plus an 11-byte digest of the own filled hgrid cells over LoRa every 30 s: teammates out "
+        "lora": "complete, plus an 11-byte digest of the own filled hgrid cells over LoRa every 20 s: teammates out "
                 "of UWB and WiFi reach stay alive and their fill counts",
     }
     default_variant = "complete"
