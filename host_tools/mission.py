@@ -165,13 +165,13 @@ class MissionResult:
     polygon_maps: dict | None = None     # schemes with polygon maps: host_tools.polygon_metrics.report
     frame_merges: dict | None = None     # schemes that merge frames: host_tools.merge_metrics
     failed_at_s: dict[int, float] = field(default_factory=dict)   # robot -> when it failed (MissionConfig.failures)
+    # Per robot: the share of the reachable area its own LiDAR observed (a slow robot's share
+    # against the others', issue 24).
+    observed_share: list[float] = field(default_factory=list)
     # With failures: the share of the reachable area the robots still running at the end saw
     # (a failed robot's map is lost with it), and per failed robot the share of the area only
     # it had seen when it failed, and how much of that the survivors saw by the end.
     coverage_survivors: float | None = None
-    # Per robot: the share of the reachable area its own LiDAR observed (a slow robot's share
-    # against the others', issue 24).
-    observed_share: list[float] = field(default_factory=list)
     lost_at_failure: dict[int, float] = field(default_factory=dict)
     recovered: dict[int, float | None] = field(default_factory=dict)
 
@@ -321,10 +321,10 @@ def run_mission(cfg: MissionConfig, progress: Callable[[float, float], None] | N
     """One mission to completion, the time limit, or until `should_stop()` (asked once per
     tick) says so: then it ends there, with termination "interrupted", and the result holds
     everything up to that tick. scheme_settings: the scheme's own parameters changed
-    (`--set SCHEME.NAME=VALUE`, firmware.schemes.build). world_params: the simulated world's physics, with the
-    wheels' slip and the LiDAR's phase taken from cfg. loss_rule (radio_sim.channel.Channel) loses chosen
-    receptions; observer is called with the mission time and the agents once per simulated
-    second (tests)."""
+    (`--set SCHEME.NAME=VALUE`, firmware.schemes.build). world_params: the simulated world's
+    physics, with the wheels' slip and the LiDAR's phase taken from cfg. loss_rule
+    (radio_sim.channel.Channel) loses chosen receptions; observer is called with the mission
+    time and the agents once per simulated second (tests)."""
     occ, start, label = resolve_map(cfg.map_spec)
     if cfg.spread_m > 0 and cfg.starts:
         raise ValueError("give start poses or spread starts, not both")
