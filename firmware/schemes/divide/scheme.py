@@ -2,7 +2,7 @@
 one WiSER-X's coverage record counts over). Every planning cycle (and before the planner's
 last looks) it keeps, of its own waypoints:
 
-- those in its region, if there are any;
+- those in its region or within REGION_MARGIN_M of it, if there are any;
 - else, while the robot is not in its region yet, all of them, each costed the more the
   farther from the region it lies (Candidate.penalty_m), so it explores its way there (a
   frontier nearer the region as the crow flies need not lead there);
@@ -48,11 +48,6 @@ class Divide(Scheme):
     def on_travel(self, pose: OdometrySample, now_us: int) -> None:
         self._places.on_travel(pose)
 
-    def in_region(self, x_m, y_m) -> np.ndarray:
-        """Which points of this robot's odometry frame lie in its region (bool array)."""
-        bx, by = self.s.deployment.to_deployment(x_m, y_m)
-        return self.partition.region_of(bx, by) == self.region
-
     def distance_to_region_m(self, x_m, y_m) -> np.ndarray:
         """How far points of this robot's odometry frame lie from its region's plan cells."""
         bx, by = self.s.deployment.to_deployment(x_m, y_m)
@@ -65,11 +60,11 @@ class Divide(Scheme):
         self._to_region = {}
         if not wp.items:
             return
-        xs, ys = [w.x_m for w in wp.items], [w.y_m for w in wp.items]
-        keep = self.distance_to_region_m(xs, ys) <= REGION_MARGIN_M
+        to_region = self.distance_to_region_m([w.x_m for w in wp.items], [w.y_m for w in wp.items])
+        keep = to_region <= REGION_MARGIN_M
         if not keep.any() and self.distance_to_region_m(view.x_m, view.y_m)[0] > IN_REGION_M:
             keep[:] = True
-            self._to_region = {(w.x_m, w.y_m): float(d) for w, d in zip(wp.items, self.distance_to_region_m(xs, ys))}
+            self._to_region = {(w.x_m, w.y_m): float(d) for w, d in zip(wp.items, to_region)}
         self._dropped += int((~keep).sum())
         wp.items = [w for w, k in zip(wp.items, keep) if k]
 
