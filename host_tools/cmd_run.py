@@ -7,7 +7,7 @@ import sys
 import threading
 
 from host_tools.mission import MissionConfig, drawn_failures, run_mission
-from host_tools.options import (FAIL, FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEME,
+from host_tools.options import (FAIL, FLUSH_S, FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEME,
                                 SEED, SET, SLOW, SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread)
 from host_tools.overrides import (check_schemes_used, combine_overrides, describe, params_help, params_with,
                                   scheme_settings)
@@ -17,7 +17,7 @@ from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, str
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as a shell reports a command Ctrl-C ended
 
 OPTIONS = (
-    MAP, ROBOTS, SEED, MAX_SIM_S, RADIO, RANGE_M, SCHEME, FRAMES,
+    MAP, ROBOTS, SEED, MAX_SIM_S, FLUSH_S, RADIO, RANGE_M, SCHEME, FRAMES,
     Opt("--serial-radio", "flag", "drive every robot's radio through a virtual RN2483 modem on a pseudo-terminal"),
     Opt("--serial-lidar", "flag", "read every robot's LiDAR through the RPLIDAR driver and an emulated scanner on a "
         "pseudo-terminal"),
@@ -62,7 +62,7 @@ def main(args: argparse.Namespace) -> int:
                             wheel_slip_frac=args.wheel_slip, lidar_phase_ms=args.lidar_phase_ms, range_m=args.range_m,
                             spread_m=args.spread, spread_max_m=args.spread_max,
                             failures=drawn_failures(tuple(args.failures), args.seed, args.robots),
-                            speed_factors=tuple(args.speed_factors))
+                            speed_factors=tuple(args.speed_factors), flush_s=args.flush_s)
     except (ValueError, OutputPathError) as exc:
         print(f"lorascout run: {exc}", file=sys.stderr)
         return 2
@@ -147,6 +147,21 @@ def _frontiers_left(r: dict) -> str:
     return out
 
 
+def _flush_and_digests(r: dict) -> list[str]:
+    """The flush phase's lines and whether the robots hold the same shared state, if any."""
+    lines = []
+    if "flush" in r:
+        f = r["flush"]
+        lines.append(f"flush          {f['ran_s']:.1f} s after every robot stopped (of {f['flush_s']:g} s asked), "
+                     f"{sum(f['frames_sent'])} frames, {sum(f['bytes_sent'])} bytes")
+    if "scheme_digests" in r:
+        d = r["scheme_digests"]
+        kinds = ", ".join(sorted({k for per in d["per_robot"] for k in per}))
+        lines.append(f"shared state   {'the same on every robot still running' if d['agree'] else 'differs between robots'}"
+                     f" ({kinds})")
+    return lines
+
+
 def format_summary(r: dict) -> str:
     t90 = "not reached" if r["t_90_s"] is None else f"{r['t_90_s']:.1f} s"
     paths = ", ".join(f"{p:.1f}" for p in r["path_length_m"])
@@ -166,6 +181,7 @@ def format_summary(r: dict) -> str:
         f"duty-cycle violations {r['radio_stats']['duty_cycle_violations']}",
         f"receptions     {_receptions(r['radio_stats']['receptions'], sum(r['radio_stats']['frames_sent']))}",
         f"in a wall      {r['robots_in_wall']} robot-ticks",
+        *_flush_and_digests(r),
         f"speed          {r['sim_speedup']:.1f}x real time, {r['ticks_per_s']:.0f} ticks/s, {r['wall_s']:.1f} s wall",
     ]
     if r.get("params_overrides"):

@@ -11,7 +11,7 @@ import sys
 import threading
 from pathlib import Path
 
-from host_tools.options import (FAIL, FRAMES, LIDAR_PHASE, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEMES, SEED_MAX,
+from host_tools.options import (FAIL, FLUSH_S, FRAMES, LIDAR_PHASE, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEMES, SEED_MAX,
                                 SET, SLOW, SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread,
                                 with_default)
 from host_tools.overrides import check_schemes_used, combine_overrides, params_help
@@ -34,7 +34,7 @@ OPTIONS = (
     Opt("--also-radio", "choice", "repeat the trials of the strategies that use the LoRa link (greedy, minpos) on "
         "these profiles and tabulate what they cost against --radio", nargs="+", choices=RADIO.choices, default=[],
         metavar="PROFILE"),
-    RANGE_M, FRAMES, SPREAD, SPREAD_MAX, MAX_SIM_S, WHEEL_SLIP, LIDAR_PHASE, FAIL, SLOW, SET,
+    RANGE_M, FRAMES, SPREAD, SPREAD_MAX, MAX_SIM_S, FLUSH_S, WHEEL_SLIP, LIDAR_PHASE, FAIL, SLOW, SET,
     Opt("--jobs", "int", "local worker processes", lo=1, hi=256, default=os.cpu_count() or 1),
     Opt("--ray", "address", "run on a Ray cluster instead: 'local' starts one here, 'auto' finds one, or "
         "HOST:PORT (refused at once if nothing answers there)", metavar="ADDRESS"),
@@ -106,7 +106,7 @@ def main(args: argparse.Namespace) -> int:
         spec = SweepSpec(tuple(args.maps), tuple(args.strategies), args.robots, args.seeds, args.radio,
                          args.max_sim_s, args.first_seed, tuple(r for r in args.also_radio if r != args.radio),
                          overrides, args.wheel_slip, args.lidar_phase_ms, args.range_m, args.frames, args.spread,
-                         args.spread_max, tuple(args.failures), tuple(args.speed_factors))
+                         args.spread_max, tuple(args.failures), tuple(args.speed_factors), args.flush_s)
         trials = spec.trials()
     except ValueError as exc:
         print(f"lorascout sweep: {exc}", file=sys.stderr)

@@ -109,6 +109,12 @@ class MissionConfig:
     # turn-rate limits in (0, 1]); their firmware is not told.
     failures: tuple[Failure, ...] = ()
     speed_factors: tuple[tuple[int, float], ...] = ()
+    # Once every robot has settled, the radios go on this long before the mission ends (the
+    # robots keep ticking, parked; one that wakes up ends it): records still on their way
+    # arrive, so every robot's view of the team's shared state can be compared at the end.
+    # Not part of t_total_s nor of radio_stats' frames, bytes and rates (MissionResult.flush
+    # has its own); the link layer's counters in radio_stats include it.
+    flush_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name, pairs in (("failures (--fail)", self.failures), ("speed_factors (--slow)", self.speed_factors)):
@@ -127,6 +133,8 @@ class MissionConfig:
                                  f"(--max-sim-s {self.max_sim_s:g})")
             if f.at_coverage is not None and not 0.0 < f.at_coverage <= 1.0:
                 raise ValueError(f"failures (--fail): robot {f.robot} at coverage {f.at_coverage:g}: must be in (0, 1]")
+        if not 0.0 <= self.flush_s <= self.max_sim_s:
+            raise ValueError(f"flush_s (--flush-s) {self.flush_s:g} s: must be in [0, --max-sim-s {self.max_sim_s:g}]")
 
 
 @dataclass
@@ -174,6 +182,8 @@ class MissionResult:
     coverage_survivors: float | None = None
     lost_at_failure: dict[int, float] = field(default_factory=dict)
     recovered: dict[int, float | None] = field(default_factory=dict)
+    # With a flush phase (MissionConfig.flush_s): per robot, frames and bytes it sent in it.
+    flush: dict | None = None
 
     @property
     def sim_speedup(self) -> float:
@@ -188,7 +198,13 @@ class MissionResult:
         keys = sorted({k for s in per_robot for k in s})
         return {k: [s.get(k, 0) for s in per_robot] for k in keys}
 
+    def scheme_digests(self) -> list[dict[str, str]]:
+        """Per robot, its scheme's digests of the team's shared state (Scheme.digests)."""
+        return [a.scheme.digests() for a in self.agents]
+
     def to_json(self) -> dict:
+        digests = self.scheme_digests()
+        running = [d for d, status in zip(digests, self.robot_status) if status != "failed"]
         return {
             "map": self.map_label,
             "seed": self.config.seed,
@@ -237,6 +253,11 @@ class MissionResult:
             "explorer_stats": self.explorer_stats(),
             **({"polygon_maps": self.polygon_maps} if self.polygon_maps is not None else {}),
             **({"frame_merges": self.frame_merges} if self.frame_merges is not None else {}),
+            # Equal on two robots exactly when they hold the same shared state; "agree": every
+            # robot still running holds the same.
+            **({"scheme_digests": {"per_robot": digests, "agree": all(d == running[0] for d in running)}}
+               if any(digests) else {}),
+            **({"flush": self.flush} if self.flush is not None else {}),
             # Wall-clock figures: the only keys that differ between identical runs.
             "wall_s": round(self.wall_s, 3),
             "sim_speedup": round(self.sim_speedup, 2),
@@ -518,6 +539,8 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
     running = [True] * cfg.robots                          # False: the robot failed
     failed_at_s: dict[int, float] = {}
     lost: dict[int, np.ndarray] = {}                       # failed robot -> cells only it had seen then
+    flush_us = int(round(cfg.flush_s * 1e6))
+    settled_us = None              # when every running robot had settled (and none has woken up since)
     wall0 = time.perf_counter()
     while True:
         now = world.now_us
@@ -537,7 +560,12 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
             failed_at_s[i] = now / 1e6
             del pending[i]
             lost[i] = world.observed(i) & reachable & ~_seen_by(world, _on(running), reachable)
-        if all(a.settled or not on for a, on in zip(agents, running)) or now >= max_us:
+        if settled_us is None:
+            if all(a.settled or not on for a, on in zip(agents, running)):
+                settled_us = now
+        elif not all(a.done or not on for a, on in zip(agents, running)):
+            settled_us = None           # a robot woke up in the flush: the mission goes on
+        if (settled_us is not None and now - settled_us >= flush_us) or now >= max_us:
             break
         if should_stop is not None and should_stop():
             interrupted = True
@@ -579,18 +607,21 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         digest.update(t.tobytes())
     own_shares = [float((world.observed(i) & reachable).sum()) / reachable_cells for i in range(cfg.robots)]
     survivors_seen = _seen_by(world, _on(running), reachable) if cfg.failures else None
+    end_us = world.now_us if settled_us is None else settled_us
+    flushed = [a for a in air_frames if a.start_us >= end_us] if cfg.flush_s > 0 else []
+    mission_frames = [a for a in air_frames if a.start_us < end_us] if flushed else air_frames
     return MissionResult(
         pose_error_m=pose_error,
         pose_error_max_m=pose_error_max,
         overlap=sum(own_shares) - coverage,
         observed_share=own_shares,
-        radio=radio_metrics(air_frames, channel, agents, mesh, world.now_us),
+        radio=radio_metrics(mission_frames, channel, agents, mesh, end_us),
         air_log_sha256=air_log_digest(air_frames),
         config=cfg,
         map_label=label,
         coverage=coverage,
         path_length_m=[float(world.path_length_m(i)) for i in range(cfg.robots)],
-        t_total_s=world.now_us / 1e6,
+        t_total_s=end_us / 1e6,
         t_90_s=None if t_90_us is None else t_90_us / 1e6,
         termination=_termination(agents, interrupted, running),
         wall_s=wall_s,
@@ -607,6 +638,10 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         lost_at_failure={i: float(cells.sum()) / reachable_cells for i, cells in lost.items()},
         recovered={i: float((cells & survivors_seen).sum()) / cells.sum() if cells.any() else None
                    for i, cells in lost.items()},
+        flush=None if cfg.flush_s <= 0 else {
+            "flush_s": cfg.flush_s, "ran_s": (world.now_us - end_us) / 1e6,
+            "frames_sent": [sum(a.sender_id == i for a in flushed) for i in range(cfg.robots)],
+            "bytes_sent": [sum(len(a.payload) for a in flushed if a.sender_id == i) for i in range(cfg.robots)]},
         trajectories=trajectories,
         world=world,
         agents=agents,

@@ -295,6 +295,10 @@ SCHEMES = Opt("--schemes", "scheme", f"coordination schemes to run (default: {' 
 RANGE_M = Opt("--range-m", "float", "a hard radio range: robots farther apart than this hear nothing from each "
               "other, on any profile (the ideal link's disc model, as Pereira et al.'s 5 m); default: the profile's "
               "own reach", unit="m", lo=0.0, lo_open=True, hi=1e6, metavar="M")
+FLUSH_S = Opt("--flush-s", "float", "once every robot has stopped, keep the radios going this long before the "
+              "mission ends (robots parked; one that wakes up goes on), so records on their way arrive; not counted "
+              "in T_total or the radio's rates; the report compares what each robot holds (scheme_digests)",
+              unit="s", lo=0.0, hi=SIM_S_MAX, default=0.0, metavar="S")
 FRAMES = Opt("--frames", "choice", "odometry frames: one shared by the team (start poses measured at deployment), or "
              "each robot's own, unknown to the others", choices=("shared", "own"), default="shared")
 SPREAD = Opt("--spread", "float", "spread starts instead: every robot at least this much driving distance from every "

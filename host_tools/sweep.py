@@ -59,6 +59,7 @@ class SweepSpec:
     # Robots that fail and slower robots in every trial (MissionConfig's fields).
     failures: tuple[Failure, ...] = ()
     speed_factors: tuple[tuple[int, float], ...] = ()
+    flush_s: float = 0.0            # MissionConfig.flush_s of every trial
 
     def lora_strategies(self) -> tuple[str, ...]:
         return tuple(s for s in self.strategies if "radio" in build_scheme(s).needs_of() and "mesh" not in build_scheme(s).needs_of())
@@ -71,7 +72,7 @@ class SweepSpec:
                               lidar_phase_ms=self.lidar_phase_ms, range_m=self.range_m, frames=self.frames,
                               spread_m=self.spread_m, spread_max_m=self.spread_max_m,
                               failures=drawn_failures(self.failures, self.first_seed + k, self.robots),
-                              speed_factors=self.speed_factors)
+                              speed_factors=self.speed_factors, flush_s=self.flush_s)
                 for radio, s in grid for m in self.maps for k in range(self.seeds)]
 
 
@@ -131,7 +132,8 @@ def trial_key(cfg_or_report: MissionConfig | dict, overrides: Overrides = ()) ->
                 float(c.wheel_slip_frac), round(c.lidar_phase_ms * 1000),
                 None if c.range_m is None else float(c.range_m), c.frames,
                 (float(c.spread_m), float(c.spread_max_m)) if c.spread_m > 0 else None,
-                tuple(sorted(tuple(f) for f in c.failures)), tuple(sorted((int(r), float(x)) for r, x in c.speed_factors)))
+                tuple(sorted(tuple(f) for f in c.failures)), tuple(sorted((int(r), float(x)) for r, x in c.speed_factors)),
+                float(c.flush_s))
     r = cfg_or_report
     world = r.get("world", {})
     spread = r.get("spread_m")
@@ -140,7 +142,8 @@ def trial_key(cfg_or_report: MissionConfig | dict, overrides: Overrides = ()) ->
             int(world.get("lidar_phase_us", 0)), None if r.get("range_m") is None else float(r["range_m"]),
             r.get("frames", "shared"), None if spread is None else (float(spread[0]), float(spread[1])),
             tuple(sorted((f["robot"], f.get("at_s"), f.get("at_coverage")) for f in r.get("failures", []))),
-            tuple(sorted((int(k), float(v)) for k, v in r.get("speed_factors", {}).items())))
+            tuple(sorted((int(k), float(v)) for k, v in r.get("speed_factors", {}).items())),
+            float(r.get("flush", {}).get("flush_s", 0.0)))
 
 
 def coverage_floor(coverage: float) -> float:
@@ -453,7 +456,21 @@ def tables(spec: SweepSpec, results: list[dict]) -> dict:
                 })
     return {"spec": asdict(spec), "table3_p_max": table3, "table4_communication": table4,
             "comparisons": comparisons, "radio_cost": radio_cost, "failures": _failure_rows(spec, by),
+            "shared_state": _shared_state_rows(spec, by),
             "shortfalls": {"coverage_target": COVERAGE_TARGET, "trials": trial_count, "short": short}}
+
+
+def _shared_state_rows(spec: SweepSpec, by: dict) -> list[dict]:
+    """For schemes that report digests of the team's shared state (scheme_digests): per map
+    and strategy, in how many trials every robot still running ended holding the same."""
+    rows = []
+    for m in spec.maps:
+        for s in spec.strategies:
+            trials = [t for t in by.get((m, s), []) if "scheme_digests" in t]
+            if trials:
+                rows.append({"map": trials[0]["map"], "strategy": s, "trials": len(trials),
+                             "agree": sum(t["scheme_digests"]["agree"] for t in trials)})
+    return rows
 
 
 def _failure_rows(spec: SweepSpec, by: dict) -> list[dict]:
@@ -484,6 +501,7 @@ def markdown(t: dict) -> str:
     world = _world_changed(spec)
     lines = [f"p_max [m] (median over {spec['seeds']} seeds of the longest robot path; {spec['robots']} robots, "
              f"radio {spec['radio']}" + ("" if spec.get("range_m") is None else f" within {spec['range_m']:g} m")
+             + (f", a {spec['flush_s']:g} s flush" if spec.get("flush_s") else "")
              + (f"; explorer parameters changed: {changed}" if changed else "")
              + (f"; simulated world: {world}" if world else "")
              + "); in brackets: lowest coverage, missions complete",
@@ -518,6 +536,12 @@ def markdown(t: dict) -> str:
             seen = "-" if f["recovered_median"] is None else f"{f['recovered_median']:.2f}"
             lines.append(f"| {f['map']} | {f['strategy']} | {f['failed']} in {f['trials']} trials | "
                          f"{f['coverage_survivors_median']:.4f} | {f['lost_at_failure_median']:.4f} | {seen} |")
+    if t.get("shared_state"):
+        flush = spec.get("flush_s", 0.0)
+        lines += ["", "The team's shared state (the scheme's digests) at the end"
+                  + (f", after a {flush:g} s flush" if flush else ", with no flush phase (--flush-s)") + ":", "",
+                  "| map | strategy | every robot holds the same |", "|---|---|---:|"]
+        lines += [f"| {r['map']} | {r['strategy']} | {r['agree']} of {r['trials']} |" for r in t["shared_state"]]
     if t["comparisons"]:
         lines += ["", "| map | p_max ratio | value | 90 % interval | bound | holds |", "|---|---|---:|---|---|:---:|"]
         for c in t["comparisons"]:

@@ -1,6 +1,8 @@
 """Pereira et al.'s scheme end to end on the simulated HAL: a small team explores a cave by
 itself over eu868-g3, and every robot ends holding the same records and so the same
 region graph (pereira.md 6.3 bars 1, 2 and 8, on a small map)."""
+import dataclasses
+
 from firmware.comms.frame import decode_frame
 from host_tools.mission import MissionConfig, run_mission
 
@@ -39,3 +41,39 @@ def test_records_lost_once_on_their_way_to_a_robot_still_reach_it_before_the_mis
     assert r.termination == "complete" and offered
     stores = [a.scheme.store for a in r.agents]
     assert len({s.digest() for s in stores}) == 1
+
+
+def test_a_flush_phase_keeps_the_radios_going_after_the_end_without_changing_the_mission():
+    """`--flush-s`: once every robot has stopped the radios go on for that long; T_total and
+    the radio's figures are the mission's own, the flush's frames are counted apart, and the
+    report compares what each robot holds."""
+    cfg = MissionConfig(map_spec="cave:5:20x20", robots=3, seed=0, strategy="pereira", max_sim_s=600,
+                        radio="eu868-g3")
+    plain = run_mission(cfg).to_json()
+    flushed = run_mission(dataclasses.replace(cfg, flush_s=60.0)).to_json()
+    assert plain["termination"] == flushed["termination"] == "complete"
+    assert flushed["t_total_s"] == plain["t_total_s"] < 600 - 60
+    assert flushed["radio_stats"]["frames_sent"] == plain["radio_stats"]["frames_sent"]
+    assert flushed["radio_stats"]["bytes_per_s_mean"] == plain["radio_stats"]["bytes_per_s_mean"]
+    assert "flush" not in plain
+    f = flushed["flush"]
+    assert f["flush_s"] == 60.0 and f["ran_s"] == 60.0
+    assert all(n > 0 for n in f["frames_sent"]) and all(b > 0 for b in f["bytes_sent"])   # summaries, heartbeats
+    for report in (plain, flushed):
+        digests = report["scheme_digests"]
+        assert digests["agree"] and len(digests["per_robot"]) == 3
+        assert set(digests["per_robot"][0]) == {"records", "region_graph"}
+
+
+def test_the_report_says_when_robots_hold_different_shared_state():
+    """Robot 2 hears nothing at all: its records and region graph differ from the others'."""
+    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=3, seed=0, strategy="pereira", max_sim_s=600,
+                                  radio="eu868-g3"), loss_rule=lambda sender, receiver, payload: receiver == 2)
+    digests = r.to_json()["scheme_digests"]
+    assert not digests["agree"]
+    assert digests["per_robot"][0] == digests["per_robot"][1] != digests["per_robot"][2]
+
+
+def test_schemes_without_shared_state_report_no_digests():
+    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=2, seed=0, strategy="independent", max_sim_s=30))
+    assert "scheme_digests" not in r.to_json()

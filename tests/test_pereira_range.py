@@ -38,8 +38,8 @@ def three_corridors(folder: Path) -> Path:
     return folder / "corridors.yaml"
 
 
-def chain_mission(map_path: Path, push_max: int):
-    cfg = MissionConfig(map_spec=str(map_path), robots=3, seed=0, strategy="pereira", radio="ideal-100Bps",
+def chain_mission(map_path: Path, scheme: str = "pereira", push_max: int = 6):
+    cfg = MissionConfig(map_spec=str(map_path), robots=3, seed=0, strategy=scheme, radio="ideal-100Bps",
                         max_sim_s=400, range_m=RANGE_M,
                         starts=tuple((x, 2.0, math.pi / 2) for x in CORRIDOR_X_M))
     return run_mission(cfg, params=params_with((("pereira_push_max", push_max),)))
@@ -56,7 +56,7 @@ def corridors(tmp_path_factory):
 
 
 def test_the_ends_of_a_chain_hear_nothing_of_each_other_and_learn_through_the_middle(corridors):
-    r = chain_mission(corridors, push_max=6)
+    r = chain_mission(corridors)
     assert r.termination == "complete" and r.coverage >= 0.99 and r.to_json()["range_m"] == RANGE_M
     fates: dict[tuple[int, int], set[str]] = {}
     for f in r.air_frames:
@@ -73,12 +73,15 @@ def test_the_ends_of_a_chain_hear_nothing_of_each_other_and_learn_through_the_mi
     assert held_from(b, 0) > 0 and held_from(b, 2) > 0
 
 
-def test_without_gossip_the_ends_of_the_chain_never_learn_each_others_records(corridors):
-    r = chain_mission(corridors, push_max=0)
+@pytest.mark.parametrize("scheme, push_max", [("pereira", 0), ("pereira-nogossip", 6)])
+def test_without_gossip_the_ends_of_the_chain_never_learn_each_others_records(corridors, scheme, push_max):
+    r = chain_mission(corridors, scheme, push_max)
+    assert r.termination == "complete"
     a, b, c = r.agents
     assert held_from(a, 2) == 0 and held_from(c, 0) == 0
     assert held_from(b, 0) > 0 and held_from(b, 2) > 0
     assert sum(r.to_json()["explorer_stats"]["records_pushed"]) == 0
+    assert sum(r.to_json()["explorer_stats"]["summaries_sent"]) == 0
 
 
 def test_run_and_sweep_take_a_range_record_it_and_refuse_a_bad_one(tmp_path, capsys):

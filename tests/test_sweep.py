@@ -280,3 +280,18 @@ def test_a_sweep_resumed_from_a_trials_file_without_paths_draws_its_figures(tmp_
     assert (second / "paths_overview.png").stat().st_size > 0
     assert cli_main(argv + ["--seeds", "1", "--out", str(second), "--tables-of-code",
                             json.loads((first / "trials.jsonl").read_text())["code_sha256"][:12]]) == 0
+
+
+def test_a_sweep_with_a_flush_tabulates_whether_every_robot_holds_the_same_shared_state(tmp_path, capsys):
+    argv = ["sweep", "--maps", "cave:5:20x20", "--strategies", "pereira", "independent", "--robots", "2", "--seeds",
+            "1", "--max-sim-s", "300", "--jobs", "1", "--quiet", "--out", str(tmp_path), "--resume"]
+    assert cli_main(argv + ["--flush-s", "30"]) == 0
+    out, _ = capsys.readouterr()
+    assert "radio ideal-100Bps, a 30 s flush" in out
+    assert "The team's shared state (the scheme's digests) at the end, after a 30 s flush:" in out
+    assert "| cave:5:20x20 | pereira | 1 of 1 |" in out
+    assert "| cave:5:20x20 | independent |" not in out.split("shared state")[1]
+    reports = [json.loads(line) for line in (tmp_path / PARTIAL_NAME).read_text().splitlines()]
+    assert {r["strategy"]: r.get("flush", {}).get("ran_s") for r in reports} == {"pereira": 30.0, "independent": 30.0}
+    assert cli_main(argv) == 0                                   # no flush: other trials
+    assert "resuming: 0 trials done earlier, 2 to run" in capsys.readouterr().err

@@ -38,6 +38,7 @@ ALIASES: dict[str, str] = {
     "minpos-full": "dense:minpos",
     "meier-full": "dense:meier",
     "pereira-oracle": "pereira:oracle",
+    "pereira-nogossip": "pereira:nogossip",
     "wiserx-blind": "wiserx:blind",
     "wiserx-lora": "wiserx:lora",
     "mrtopomap-literal": "mrtopomap:literal",

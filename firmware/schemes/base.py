@@ -204,6 +204,12 @@ class Scheme(ABC):
         """Counters for the mission report (stable keys)."""
         return {}
 
+    def digests(self) -> dict[str, str]:
+        """The team's shared state as this robot holds it, as digests that are equal on two
+        robots exactly when they hold the same (for the mission report); {} for a scheme
+        that keeps none."""
+        return {}
+
     def drawables(self) -> dict[str, Any]:
         """Geometry for plots: any of
         "points" (N x 2 m), "segments" (M x 2 x 2 m), "highlight" (bool per point),

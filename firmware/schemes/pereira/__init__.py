@@ -14,6 +14,8 @@ dissector decode it. Variants:
                      the start, never sent; an oracle robot finds no gates of its own. So
                      pereira / pereira:oracle measures what finding gates from partial,
                      drifting views and sharing them costs, not the detector's rule itself.
+    pereira:nogossip (alias pereira-nogossip) no summaries and no pushes: a robot holds
+                     only what it heard from the records' origins (the multi-hop ablation)
 
     scheme.py    the Scheme: places every d_build_m, gates confirmed in the robot's own
                  map every pereira_gate_period_s, the explored judgement (A2) and claims,
@@ -62,7 +64,12 @@ Not yet, or not as the spec says:
 - the oracle's region map is not loaded on a real robot (host_tools/robot_config has no
   file for it yet): only missions (`lorascout run`, `sweep`) hand it over;
 - routing over the region graph (it routes on its own places like the no-sharing
-  baseline), the pereira-grid and pereira-nogossip variants, the mission's flush phase and
-  per-robot digests in the JSON, the region overlay as filled areas, tests/data/pereira8,
-  a numba fold, and the acceptance grid (10 seeds, four maps, two links, ranges, loss).
+  baseline), the pereira-grid variant, the region overlay as filled areas,
+  tests/data/pereira8, a numba fold, and the acceptance grid (10 seeds, four maps, two
+  links, ranges, loss).
+
+The mission report holds each robot's digests of its record set and region graph
+(Scheme.digests; `scheme_digests` in the JSON, with whether every robot holds the same),
+and `--flush-s S` keeps the radios going after every robot has stopped, so records still
+on their way arrive before they are compared (pereira.md 6.3 bar 8).
 """

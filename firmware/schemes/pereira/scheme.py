@@ -64,7 +64,9 @@ class Pereira(Scheme):
     doc = "Pereira et al.'s region statuses merged without clocks, frontier categories and eq. (3), over LoRa"
     variants = {"": "regions from gates and places, statuses as claims, categories and eq. (3), gossip for multi-hop",
                 "oracle": "the same, with regions cut at the doorways of a region map the host loads (the ground "
-                          "truth's: the paper's oracle condition) instead of gates the robots find"}
+                          "truth's: the paper's oracle condition) instead of gates the robots find",
+                "nogossip": "the same without summaries and pushes: a robot holds only the records it heard from "
+                            "their origins (the multi-hop ablation)"}
     dialect = DIALECT
     needs = frozenset({"radio", "shared_frame"})
 
@@ -102,6 +104,7 @@ class Pereira(Scheme):
             raise ValueError(f"scheme {self.spec} needs the team's region map: give it with load_region_map "
                              "before the robot starts")
         self.pp = with_tuning(p.pereira_widening_kappa)
+        self._push_max = 0 if self.variant == "nogossip" else p.pereira_push_max   # 0: no gossip at all
         self.store = Store(self._doorways or (), params=self.pp)
         self.holdings = Holdings()
         self.tracker = GateTracker(self.pp)
@@ -221,7 +224,7 @@ class Pereira(Scheme):
             said = dict(s.entries)
             if me in said or len(s.entries) < SUMMARY_SLOTS:    # a full summary may leave this robot out
                 self._mine_held_by[s.sender_id] = (said.get(me, 0), now_us)
-            for name, record in self.holdings.to_push(s.sender_id, s.entries, self.s.params.pereira_push_max,
+            for name, record in self.holdings.to_push(s.sender_id, s.entries, self._push_max,
                                                       self._held_at_summary):
                 self._outbox.setdefault((record.sender_id, record.oseq), (name, record))
             return
@@ -235,7 +238,7 @@ class Pereira(Scheme):
 
     # --- gossip -----------------------------------------------------------------------
     def _task_summary(self, now_us: int) -> None:
-        if self.s.send is None or self.s.params.pereira_push_max == 0:
+        if self.s.send is None or self._push_max == 0:
             return
         entries = self.holdings.summary_entries(self._summary_turn)
         self._held_at_summary = self.holdings.snapshot()
@@ -484,6 +487,10 @@ class Pereira(Scheme):
                 "regions": sum(not r.virtual for r in graph.regions),
                 "virtual_regions": sum(r.virtual for r in graph.regions), "gates_held": len(graph.gates),
                 "regions_explored_by_others": len(self._explored_by_others())}
+
+    def digests(self) -> dict[str, str]:
+        """The record set held and the region graph folded from it (pereira.md 6.3, bar 8)."""
+        return {"records": self.store.digest()[:16], "region_graph": self.store.graph().digest()[:16]}
 
     def drawables(self) -> dict:
         graph = self.store.graph()
