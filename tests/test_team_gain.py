@@ -45,3 +45,20 @@ def test_grids_with_nothing_to_pair_or_a_bad_bound_are_errors(tmp_path, capsys):
     assert "no such file" in capsys.readouterr().err
     assert main([str(team), str(other), "--bound", "0"]) == 2
     assert "--bound 0.0: must be above 0" in capsys.readouterr().err
+
+
+def test_t_total_is_compared_seed_by_seed_and_as_a_ratio_of_medians(tmp_path, capsys):
+    def timed(seed, robots, t_total_s):
+        return {**_trial(seed, [10.0] * robots, strategy="pereira"), "t_total_s": t_total_s}
+
+    team = write_grid(tmp_path, "team", [timed(0, 2, 70.0), timed(1, 2, 90.0), timed(2, 2, 40.0)])
+    one = write_grid(tmp_path, "one", [timed(0, 1, 100.0), timed(1, 1, 100.0), timed(2, 1, 80.0)])
+    assert main([str(team), str(one), "--measure", "t_total", "--bound", "0.8"]) == 1
+    out = capsys.readouterr().out
+    assert "T_total / one robot's T_total: median, worst" in out
+    (row,) = _cells(out, "| intel")
+    assert row[5] == "0.70, 0.90" and row[6] == "2 of 3"       # 0.7, 0.9, 0.5
+    assert row[9].startswith("0.70 (")                          # median 70 over median 100
+    no_times = write_grid(tmp_path, "no_times", [_trial(0, [100.0], strategy="independent")])
+    assert main([str(team), str(no_times), "--measure", "t_total"]) == 2
+    assert "t_total_s" in capsys.readouterr().err
