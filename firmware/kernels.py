@@ -324,6 +324,45 @@ def chamfer_distances(state):
 
 
 @njit(cache=True)
+def wall_jump_cells(ok, ai, aj, c2, cos_limit):
+    """Cells of `ok` where the nearest wall jumps (a Voronoi diagram of the walls on a grid):
+    of two neighbours p, q (4- or diagonal), both ok, whose nearest wall cells (ai, aj) lie
+    at least acos(cos_limit) apart seen from p, the one with the larger squared distance c2
+    to its wall (ties: p, the lower in cell order). The angle test squares, so no roots:
+    cos(u, v) <= cos_limit."""
+    rows, cols = ok.shape
+    out = np.zeros((rows, cols), np.bool_)
+    cc = cos_limit * cos_limit
+    for i in range(rows):
+        for j in range(cols):
+            if not ok[i, j]:
+                continue
+            uy = np.int64(ai[i, j]) - i
+            ux = np.int64(aj[i, j]) - j
+            uu = float(ux * ux + uy * uy)
+            for k in range(4):
+                di = 0 if k == 0 else 1
+                dj = 1 if k == 0 else (0 if k == 1 else (1 if k == 2 else -1))
+                qi, qj = i + di, j + dj
+                if qi >= rows or qj < 0 or qj >= cols or not ok[qi, qj]:
+                    continue
+                vy = np.int64(ai[qi, qj]) - i
+                vx = np.int64(aj[qi, qj]) - j
+                dot = float(ux * vx + uy * vy)
+                uv = uu * float(vx * vx + vy * vy)
+                if cos_limit < 0:
+                    pair = dot < 0 and dot * dot >= cc * uv
+                else:
+                    pair = dot <= 0 or dot * dot <= cc * uv
+                if pair:
+                    if c2[i, j] >= c2[qi, qj]:
+                        out[i, j] = True
+                    else:
+                        out[qi, qj] = True
+    return out
+
+
+@njit(cache=True)
 def square_dilation(mask, r):
     """Cells within r cells (Chebyshev) of a True cell of mask: any(mask) over the square of
     side 2 r + 1 around each cell, clipped to the grid. Two passes of running counts (rows,

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import scipy.ndimage as ndimage
 
 from firmware import kernels
 from firmware.services.motion import scan_points, travel_share_seen
@@ -58,6 +59,11 @@ def warm_up(params: ExplorationParams) -> None:
     kernels.mark_visible(layers.sight, ij[inside, 0], ij[inside, 1], small.team_view_rays,
                          small.d_cam_m / small.resolution_m, layers.sight == kernels.UNKNOWN,
                          np.zeros(layers.sight.shape, bool))
+    # The walls' Voronoi cells, as Pereira et al.'s gate finder looks for doorways.
+    walls = layers.state == kernels.OCCUPIED
+    _d, (wall_i, wall_j) = ndimage.distance_transform_edt(~walls, return_indices=True)
+    cell_i, cell_j = np.indices(walls.shape)
+    kernels.wall_jump_cells(~walls, wall_i, wall_j, (wall_i - cell_i) ** 2 + (wall_j - cell_j) ** 2, -0.5)
     # The boundary of the observed area, as Meier et al.'s polygon maps trace it.
     kernels.crack_contours(layers.state == kernels.FREE, layers.state == kernels.OCCUPIED)
     # The topological map: a record folded, one more merged in, graph costs on the result.

@@ -316,3 +316,29 @@ def slip_misfits(ref_x, ref_y, turned_x, turned_y, travel_x, travel_y, shares, g
         if counted[s]:
             misfit[s] = np.minimum(along, cap_m)[on_surface].mean()
     return misfit, counted
+
+
+def wall_jump_cells(ok, ai, aj, c2, cos_limit):
+    """Every pair of neighbours (4- or diagonal) in whole-array numpy, as the gate finder
+    first did it: for each offset, the pairs both ok whose nearest walls lie at least
+    acos(cos_limit) apart seen from the first; the one farther from its wall is marked."""
+    rows, cols = ok.shape
+    ii, jj = np.indices(ok.shape)
+    out = np.zeros(ok.shape, bool)
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        pj0, pj1 = max(0, -dj), cols - max(0, dj)
+        sp = (slice(0, rows - di), slice(pj0, pj1))
+        sq = (slice(di, rows), slice(pj0 + dj, pj1 + dj))
+        uy, ux = ai[sp] - ii[sp], aj[sp] - jj[sp]
+        vy, vx = ai[sq] - ii[sp], aj[sq] - jj[sp]
+        dot = (ux * vx + uy * vy).astype(np.float64)
+        uv = (ux * ux + uy * uy).astype(np.float64) * (vx * vx + vy * vy).astype(np.float64)
+        if cos_limit < 0:
+            apart = (dot < 0) & (dot * dot >= cos_limit * cos_limit * uv)
+        else:
+            apart = (dot <= 0) | (dot * dot <= cos_limit * cos_limit * uv)
+        pair = ok[sp] & ok[sq] & apart
+        p_wins = c2[sp] >= c2[sq]
+        out[sp] |= pair & p_wins
+        out[sq] |= pair & ~p_wins
+    return out

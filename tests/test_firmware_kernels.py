@@ -414,6 +414,25 @@ def test_observable_unknown_counts_about_the_disc_area():
 
 
 @SETTINGS
+@given(st.one_of(grids(values=(0, 1)), sparse_masks().map(lambda m: m.astype(np.uint8))),
+       st.sampled_from([-0.5, -0.9, 0.0, 0.5, math.cos(math.radians(120)), math.cos(math.radians(60))]))
+def test_wall_jump_cells_match_reference(walls, cos_limit):
+    """The gate finder's Voronoi cells: the nearest walls from an exact distance transform,
+    as detect_gates takes them (ties in the transform's indices included)."""
+    import scipy.ndimage as ndimage
+
+    wall = walls.astype(bool)
+    if not wall.any():
+        wall[0, 0] = True
+    _d, (ai, aj) = ndimage.distance_transform_edt(~wall, return_indices=True)
+    ii, jj = np.indices(wall.shape)
+    c2 = (ai - ii) ** 2 + (aj - jj) ** 2
+    ok = ~wall & (c2 >= 2)
+    assert np.array_equal(kernels.wall_jump_cells(ok, ai, aj, c2, cos_limit),
+                          ref.wall_jump_cells(ok, ai, aj, c2, cos_limit))
+
+
+@SETTINGS
 @given(grids(values=(0, 1, 2)))
 def test_paired_chamfer_distances_equal_the_single_ones(state):
     d_occ, d_blk = kernels.chamfer_distances(state)

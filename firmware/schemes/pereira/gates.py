@@ -66,7 +66,6 @@ from firmware.schemes.pereira.records import DIR_CODES, dir_code_of, dm, half_2c
 from firmware.services.grid_paths import lines_of_sight
 from firmware.services.local_map import close_wall_gaps
 
-_PAIR_OFFSETS = ((0, 1), (1, 0), (1, 1), (1, -1))
 _EIGHT = np.ones((3, 3), bool)
 _SIGHT_BATCH = 16      # sight tests per candidate and round, nearest first
 
@@ -94,27 +93,6 @@ def _angle_at_least(ux, uy, vx, vy, cos_limit: float):
     if cos_limit < 0:        # dot <= cos_limit |u||v| < 0
         return (dot < 0) & (dot * dot >= cos_limit * cos_limit * uv)
     return (dot <= 0) | (dot * dot <= cos_limit * cos_limit * uv)
-
-
-def _skeleton(ok, ai, aj, ii, jj, c2, cos_limit: float) -> np.ndarray:
-    """Cells of `ok` where the nearest wall jumps: of two neighbours (4- or diagonal), both
-    ok, whose nearest walls lie at least acos(cos_limit) apart seen from the first, the one
-    with the larger c2 (ties: the first, the lower in cell order)."""
-    rows, cols = ok.shape
-    out = np.zeros(ok.shape, bool)
-    for di, dj in _PAIR_OFFSETS:
-        # p = (i, j), q = (i + di, j + dj), both inside the grid
-        pj0, pj1 = max(0, -dj), cols - max(0, dj)
-        sp = (slice(0, rows - di), slice(pj0, pj1))
-        sq = (slice(di, rows), slice(pj0 + dj, pj1 + dj))
-        both = ok[sp] & ok[sq]
-        uy, ux = ai[sp] - ii[sp], aj[sp] - jj[sp]
-        vy, vx = ai[sq] - ii[sp], aj[sq] - jj[sp]
-        pair = both & _angle_at_least(ux, uy, vx, vy, cos_limit)
-        p_wins = c2[sp] >= c2[sq]
-        out[sp] |= pair & p_wins
-        out[sq] |= pair & ~p_wins
-    return out
 
 
 def _pairs_within(qi, qj, ti, tj, radii) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -175,7 +153,7 @@ def detect_gates(state: np.ndarray, row0: int, col0: int, res_m: float,
     r_min = p.r_min_m / res_m
     ok = free & (cf >= r_min)
     cos_gvd = math.cos(math.radians(p.gvd_angle_deg))
-    gi, gj = np.nonzero(_skeleton(ok, ai, aj, ii, jj, c2, cos_gvd))
+    gi, gj = np.nonzero(kernels.wall_jump_cells(ok, ai, aj, c2, cos_gvd))
     if not len(gi):
         return []
     gc2, gc = c2[gi, gj], cf[gi, gj]
@@ -194,7 +172,7 @@ def detect_gates(state: np.ndarray, row0: int, col0: int, res_m: float,
     idx = idx[~beaten]
 
     # A widening beyond the gate line, in sight for the body; the nearest for the mouth rule.
-    ri, rj = np.nonzero(_skeleton(ok, ai, aj, ii, jj, c2, math.cos(math.radians(p.ridge_angle_deg))))
+    ri, rj = np.nonzero(kernels.wall_jump_cells(ok, ai, aj, c2, math.cos(math.radians(p.ridge_angle_deg))))
     r_wide = np.maximum(p.widening_radius_m / res_m, p.widening_radius_c * gc[idx]) + 1e-6
     k, m, d2 = _pairs_within(gi[idx], gj[idx], ri, rj, r_wide)
     pi_, pj_ = gi[idx[k]], gj[idx[k]]
