@@ -143,7 +143,7 @@ class MissionResult:
     map_label: str
     coverage: float
     path_length_m: list[float]
-    t_total_s: float
+    t_total_s: float                # the last robot still running stopped (for good) then
     t_90_s: float | None
     termination: str
     wall_s: float
@@ -184,6 +184,10 @@ class MissionResult:
     recovered: dict[int, float | None] = field(default_factory=dict)
     # With a flush phase (MissionConfig.flush_s): per robot, frames and bytes it sent in it.
     flush: dict | None = None
+    # When, after t_total_s, no robot had anything left to tell the team (Scheme.has_news:
+    # records waiting or on the air, a teammate's summary showing it lacking some): the
+    # mission proper ends then, and the radio's figures cover it; the flush comes after.
+    settled_s: float | None = None
 
     @property
     def sim_speedup(self) -> float:
@@ -231,6 +235,7 @@ class MissionResult:
             "path_length_m": [round(p, 3) for p in self.path_length_m],
             "start_poses": [[round(x, 3), round(y, 3), round(yaw, 4)] for x, y, yaw in self.start_poses],
             "t_total_s": round(self.t_total_s, 3),
+            "settled_s": None if self.settled_s is None else round(self.settled_s, 3),
             "t_90_s": None if self.t_90_s is None else round(self.t_90_s, 3),
             "termination": self.termination,
             "robot_status": self.robot_status,
@@ -540,7 +545,9 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
     failed_at_s: dict[int, float] = {}
     lost: dict[int, np.ndarray] = {}                       # failed robot -> cells only it had seen then
     flush_us = int(round(cfg.flush_s * 1e6))
-    settled_us = None              # when every running robot had settled (and none has woken up since)
+    # Since when every robot still running has stopped, and since when none has news left for
+    # the team either (Scheme.has_news): the mission ends flush_us after the second.
+    stopped_us = settled_us = None
     wall0 = time.perf_counter()
     while True:
         now = world.now_us
@@ -560,11 +567,12 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
             failed_at_s[i] = now / 1e6
             del pending[i]
             lost[i] = world.observed(i) & reachable & ~_seen_by(world, _on(running), reachable)
-        if settled_us is None:
-            if all(a.settled or not on for a, on in zip(agents, running)):
+        if all(a.done or not on for a, on in zip(agents, running)):
+            stopped_us = now if stopped_us is None else stopped_us
+            if settled_us is None and all(a.settled or not on for a, on in zip(agents, running)):
                 settled_us = now
-        elif not all(a.done or not on for a, on in zip(agents, running)):
-            settled_us = None           # a robot woke up in the flush: the mission goes on
+        else:
+            stopped_us = settled_us = None      # a robot woke up (news, or in the flush): it goes on
         if (settled_us is not None and now - settled_us >= flush_us) or now >= max_us:
             break
         if should_stop is not None and should_stop():
@@ -608,6 +616,7 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
     own_shares = [float((world.observed(i) & reachable).sum()) / reachable_cells for i in range(cfg.robots)]
     survivors_seen = _seen_by(world, _on(running), reachable) if cfg.failures else None
     end_us = world.now_us if settled_us is None else settled_us
+    stopped_us = world.now_us if stopped_us is None else stopped_us
     flushed = [a for a in air_frames if a.start_us >= end_us] if cfg.flush_s > 0 else []
     mission_frames = [a for a in air_frames if a.start_us < end_us] if flushed else air_frames
     return MissionResult(
@@ -621,7 +630,8 @@ def _loop(cfg, label, occ, world, channel, bank, sensors, agents, reachable, air
         map_label=label,
         coverage=coverage,
         path_length_m=[float(world.path_length_m(i)) for i in range(cfg.robots)],
-        t_total_s=end_us / 1e6,
+        t_total_s=stopped_us / 1e6,
+        settled_s=None if settled_us is None else settled_us / 1e6,
         t_90_s=None if t_90_us is None else t_90_us / 1e6,
         termination=_termination(agents, interrupted, running),
         wall_s=wall_s,

@@ -53,6 +53,7 @@ def test_a_flush_phase_keeps_the_radios_going_after_the_end_without_changing_the
     flushed = run_mission(dataclasses.replace(cfg, flush_s=60.0)).to_json()
     assert plain["termination"] == flushed["termination"] == "complete"
     assert flushed["t_total_s"] == plain["t_total_s"] < 600 - 60
+    assert flushed["settled_s"] == plain["settled_s"] >= plain["t_total_s"]
     assert flushed["radio_stats"]["frames_sent"] == plain["radio_stats"]["frames_sent"]
     assert flushed["radio_stats"]["bytes_per_s_mean"] == plain["radio_stats"]["bytes_per_s_mean"]
     assert "flush" not in plain
@@ -77,3 +78,19 @@ def test_the_report_says_when_robots_hold_different_shared_state():
 def test_schemes_without_shared_state_report_no_digests():
     r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=2, seed=0, strategy="independent", max_sim_s=30))
     assert "scheme_digests" not in r.to_json()
+
+
+def test_t_total_is_when_the_last_robot_stopped_not_when_its_news_had_gone():
+    """The last summaries still on their way keep the mission (settled_s) going after every
+    robot has stopped (t_total_s): the team explored no longer for that."""
+    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=3, seed=1, strategy="pereira", max_sim_s=900,
+                                  radio="eu868-g3"))
+    report = r.to_json()
+    assert report["termination"] == "complete"
+    assert report["settled_s"] == r.sim_s > report["t_total_s"]
+    quiet = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=2, seed=0, strategy="independent",
+                                      max_sim_s=600)).to_json()
+    assert quiet["settled_s"] == quiet["t_total_s"]
+    cut = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=2, seed=0, strategy="independent",
+                                    max_sim_s=5)).to_json()
+    assert cut["settled_s"] is None and cut["t_total_s"] == 5.0
