@@ -64,9 +64,12 @@ Not yet, or not as the spec says:
 - the oracle's region map is not loaded on a real robot (host_tools/robot_config has no
   file for it yet): only missions (`lorascout run`, `sweep`) hand it over;
 - routing over the region graph (it routes on its own places like the no-sharing
-  baseline), the pereira-grid variant, the region overlay as filled areas,
-  tests/data/pereira8, a numba fold, and the acceptance grid (10 seeds, four maps, two
-  links, ranges, loss).
+  baseline), the pereira-grid variant, the region overlay as filled areas, a numba fold,
+  and the acceptance grid (10 seeds, four maps, two links, ranges, loss);
+- a finished robot no longer judges regions, so a region it claimed that grows a
+  teammate's place (its signature changes) is never claimed again, and the teammate
+  explores it anew (the paper's scaling experiment on tests/data/pereira8: see the
+  README's "Pereira et al.").
 
 The mission report holds each robot's digests of its record set and region graph
 (Scheme.digests; `scheme_digests` in the JSON, with whether every robot holds the same),
