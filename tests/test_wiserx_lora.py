@@ -3,7 +3,6 @@ robot filled by its own positions, over LoRa; robots out of UWB and WiFi reach s
 to each other and count each other's fill."""
 from __future__ import annotations
 
-import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 

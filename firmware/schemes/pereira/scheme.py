@@ -418,7 +418,7 @@ class Pereira(Scheme):
         window and none of its waypoints is in it, on pereira_explored_cycles cycles in a
         row; a claim says so, and a retraction follows when one of its waypoints appears
         there again. A claim is re-issued when the region's anchor or signature changes."""
-        p, me = self.s.params, self.s.robot_id
+        p = self.s.params
         graph = self.store.graph()
         lm, sight = self.s.local_map, self._sight
         items = self.s.waypoints.items
