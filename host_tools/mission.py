@@ -110,10 +110,10 @@ class MissionConfig:
     failures: tuple[Failure, ...] = ()
     speed_factors: tuple[tuple[int, float], ...] = ()
     # Once every robot has settled, the radios go on this long before the mission ends (the
-    # robots keep ticking, parked; one that wakes up ends it): records still on their way
-    # arrive, so every robot's view of the team's shared state can be compared at the end.
-    # Not part of t_total_s nor of radio_stats' frames, bytes and rates (MissionResult.flush
-    # has its own); the link layer's counters in radio_stats include it.
+    # robots keep ticking, parked; one that wakes up carries the mission on): records still
+    # on their way arrive, so every robot's view of the team's shared state can be compared
+    # at the end. Not part of t_total_s nor of radio_stats' frames, bytes and rates
+    # (MissionResult.flush has its own); the link layer's counters in radio_stats include it.
     flush_s: float = 0.0
 
     def __post_init__(self) -> None:
