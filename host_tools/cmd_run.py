@@ -5,13 +5,14 @@ import argparse
 import signal
 import sys
 import threading
+import time
 
 from host_tools.mission import MissionConfig, drawn_failures, run_mission
 from host_tools.options import (FAIL, FLUSH_S, FRAMES, JSON, LIDAR_PHASE, MAP, MAX_SIM_S, QUIET, RADIO, RANGE_M, ROBOTS, SCHEME,
                                 SEED, SET, SLOW, SPREAD, SPREAD_MAX, WHEEL_SLIP, Opt, add_options, check_spread)
 from host_tools.overrides import (check_schemes_used, combine_overrides, describe, params_help, params_with,
                                   scheme_settings)
-from host_tools.progress import progress_bar
+from host_tools.progress import ProgressLines, progress_bar
 from host_tools.safe_io import OutputPathError, atomic_path, check_out_file, strict_dumps, write_text
 
 EXIT_INTERRUPTED = 130      # 128 + SIGINT, as a shell reports a command Ctrl-C ended
@@ -67,12 +68,16 @@ def main(args: argparse.Namespace) -> int:
         print(f"lorascout run: {exc}", file=sys.stderr)
         return 2
     bar = progress_bar(cfg.max_sim_s, "mission", "sim s", args.quiet)
+    lines = ProgressLines("lorascout run", args.quiet)
     state = {"last": 0.0, "stop": False}
+    wall0 = time.monotonic()
 
     def progress(sim_s: float, coverage: float) -> None:
         bar.update(sim_s - state["last"])
         state["last"] = sim_s
         bar.set_postfix(coverage=f"{coverage:.3f}")
+        lines(f"{sim_s:.0f} s simulated of at most {cfg.max_sim_s:g}, coverage {coverage:.3f}, "
+              f"{sim_s / max(time.monotonic() - wall0, 1e-9):.2f}x real time")
 
     def on_sigint(signum, frame) -> None:
         # The first Ctrl-C ends the mission at the next tick, with a report; a second one

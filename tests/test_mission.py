@@ -266,3 +266,15 @@ def test_a_lidar_on_its_own_clock_still_maps_true():
     report = result.to_json()
     assert report["termination"] == "complete"
     assert report["coverage"] >= 0.99 and report["robots_in_wall"] == 0
+
+
+def test_without_a_terminal_a_long_run_says_now_and_then_how_far_it_is(capsys, monkeypatch):
+    from host_tools import progress
+    from host_tools.cli import main
+
+    monkeypatch.setattr(progress, "LINE_EVERY_S", 0.0)
+    assert main(["run", "--map", "cave:4:20x20", "--max-sim-s", "3"]) == 0
+    err = capsys.readouterr().err
+    assert "lorascout run: 1 s simulated of at most 3, coverage " in err and "x real time" in err
+    assert main(["run", "--map", "cave:4:20x20", "--max-sim-s", "3", "--quiet"]) == 0
+    assert "s simulated" not in capsys.readouterr().err
