@@ -295,4 +295,3 @@ def test_a_sweep_with_a_flush_tabulates_whether_every_robot_holds_the_same_share
     assert {r["strategy"]: r.get("flush", {}).get("ran_s") for r in reports} == {"pereira": 30.0, "independent": 30.0}
     assert cli_main(argv) == 0                                   # no flush: other trials
     assert "resuming: 0 trials done earlier, 2 to run" in capsys.readouterr().err
-
