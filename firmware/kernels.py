@@ -340,9 +340,7 @@ def wall_jump_cells(ok, ai, aj, c2, cos_limit):
             uy = np.int64(ai[i, j]) - i
             ux = np.int64(aj[i, j]) - j
             uu = float(ux * ux + uy * uy)
-            for k in range(4):
-                di = 0 if k == 0 else 1
-                dj = 1 if k == 0 else (0 if k == 1 else (1 if k == 2 else -1))
+            for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):     # each pair once
                 qi, qj = i + di, j + dj
                 if qi >= rows or qj < 0 or qj >= cols or not ok[qi, qj]:
                     continue
