@@ -29,7 +29,7 @@ from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, somethin
 from firmware.services.motion import PathFollower, StallDetector
 from firmware.services.planner import FrontiersLeft, Planner
 from firmware.services.pose import SHARED_FRAME, PoseService
-from firmware.services.recovery import BackOff, Recovery, clear_behind
+from firmware.services.recovery import BackOff, Recovery, Retrace, Track, clear_behind
 from firmware.services.roster import Roster
 from firmware.services.scan_match import ScanMatcher
 from firmware.services.targets import TargetKeeper
@@ -138,6 +138,9 @@ class ExplorerAgent:
         self.recovery = Recovery(self.p, limits.max_v_mps, limits.max_omega_radps)
         self.stall_back_off = BackOff(min(self.p.min_speed_mps, limits.max_v_mps))
         self.stall_back_offs = 0
+        self.track = Track(self.p.stall_retrace_m)
+        self.retrace = Retrace(min(self.p.min_speed_mps, limits.max_v_mps), limits.max_omega_radps)
+        self.stall_retraces = 0
         self.status = "exploring"
 
     def tick(self, profiler: TaskProfiler | None = None) -> None:
@@ -176,7 +179,8 @@ class ExplorerAgent:
                 "unreachable_frontiers": len(self.planner.frontiers.given_up),
                 "narrow_gap_frontiers": len(self.planner.frontiers.behind_gaps),
                 **self.recovery.counts, **self.scheme.stats(), "bumps": self.bumps,
-                "stall_back_offs": self.stall_back_offs, "ways_back": self.planner.ways_back,
+                "stall_back_offs": self.stall_back_offs, "stall_retraces": self.stall_retraces,
+                "ways_back": self.planner.ways_back,
                 "scan_matches": self.localiser.matches, "scan_corrections": self.localiser.corrections}
 
     def pose_estimate(self) -> tuple[float, float, float] | None:
@@ -258,6 +262,9 @@ class ExplorerAgent:
         if self.done:
             return
         pose = self.pose.read()
+        wheels = self.pose.odometry_at(pose.stamp_us)      # the way back is the wheels' own
+        if not self.retrace.active:
+            self.track.add(wheels[0], wheels[1])
         self.scheme.on_travel(pose, now_us)
         self.local_map.mark_trail(pose.x_m, pose.y_m)
         if self.recovery.active:
@@ -283,6 +290,13 @@ class ExplorerAgent:
             if self.done:
                 return
         cmd = self.stall_back_off.command(pose.x_m, pose.y_m, now_us)
+        if cmd is None and self.retrace.active:
+            cmd = self.retrace.command(*wheels, now_us)
+            if cmd is None:
+                # Out of where it was held: plan from here, not from there.
+                self._task_planning(now_us)
+                if self.done:
+                    return
         v, omega = cmd if cmd is not None else self.follower.command(pose.x_m, pose.y_m, pose.yaw_rad)
         self.stall.commanded(v)
         self.hal.drive.command(v, omega)
@@ -290,7 +304,10 @@ class ExplorerAgent:
     def _on_stall(self, pose, now_us: int) -> None:
         """Driving but not moving. First back off stall_back_off_m where the last scan shows
         room behind: pressing on stops (a real drive strains, its wheels dig in or slip), and
-        the next try starts clear of what held it. If the LiDAR shows nothing touching
+        the next try starts clear of what held it. Without room straight behind (wedged, held
+        on both sides) it drives stall_retrace_m back the way it came, then plans from there:
+        a path the planner draws out of a gap as wide as the body, on a pose a few centimetres
+        off, presses the body into a side of it. If the LiDAR shows nothing touching
         ahead, something the map let through (a gap narrower than it looks at 10 cm cells)
         is in the way: mark it like a bumper would. If it does show something, the map has
         it already and the path was cut too close past it: follow the next path closely
@@ -315,6 +332,11 @@ class ExplorerAgent:
         if self.p.stall_back_off_m > 0 and self._room_behind(pose, self.p.stall_back_off_m):
             self.stall_back_off.start(pose.x_m, pose.y_m, self.p.stall_back_off_m, now_us)
             self.stall_back_offs += 1
+        elif self.p.stall_retrace_m > 0:
+            way = self.track.take_way_back(self.p.stall_retrace_m)
+            if len(way):
+                self.retrace.start(way, *self.pose.odometry_at(pose.stamp_us), now_us)
+                self.stall_retraces += 1
         if touching and not wedged:
             self.follower.follow_closely(self.p.follow_closely_after_stall_m)
 

@@ -165,6 +165,11 @@ class ExplorationParams:
     # After a stall the robot first backs off this far (if the LiDAR shows room behind), so it
     # does not keep pressing on what holds it while it plans again.
     stall_back_off_m: float = _p(0.1, 'm', 0.0, 1.0, 'after a stall, back off this far if there is room behind')
+    # Without that room (a body wedged between furniture, touching on both sides, reads no
+    # room in any straight line), it drives back this far along the way it came by odometry
+    # (services.recovery.Retrace): the body was there a moment ago, so it fits.
+    stall_retrace_m: float = _p(0.5, 'm', 0.0, 5.0,
+                                'after a stall with no room straight behind, drive back this far the way it came (0: off)')
     # ... then, if the LiDAR shows what held it, path points are not cut this far
     follow_closely_after_stall_m: float = _p(1.0, 'm', 0.0, 50.0, 'after a stall, path points are not cut this far')
     stall_timeout_s: float = _p(20.0, 's', 0.1, 86400.0, 'no progress towards the target for this long drops it')

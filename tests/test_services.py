@@ -8,7 +8,7 @@ import numpy as np
 from firmware.params import ExplorationParams
 from firmware.services.local_map import BinnedScan
 from firmware.services.pose import PoseService, TravelMilestones
-from firmware.services.recovery import Recovery, clear_behind
+from firmware.services.recovery import Recovery, Retrace, Track, clear_behind
 from firmware.services.roster import Roster
 from hal.samples import SHARED_FRAME, OdometrySample
 
@@ -119,3 +119,57 @@ def test_room_behind_is_read_from_the_scan_strip_the_body_would_sweep():
     assert clear_behind(BinnedScan(0.0, 0.0, 0.0, ranges, 10.0), math.pi, 0.3, 0.27)   # ahead when facing back
     ranges[180], ranges[90] = 5.0, 0.4                       # a wall beside the body, not behind it
     assert clear_behind(BinnedScan(0.0, 0.0, 0.0, ranges, 10.0), 0.0, 0.3, 0.27)
+
+
+def test_a_track_keeps_its_last_stretch_and_hands_the_way_back_over_nearest_first():
+    track = Track(keep_m=0.3)
+    for k in range(21):                               # 1.2 m along x, a point every 6 cm
+        track.add(0.06 * k, 0.0)
+    track.add(1.14, 0.0)                              # backed off to the point before: no new point
+    track.add(1.16, 0.0)                              # less than a spacing on: none either
+    way = track.take_way_back(0.2)
+    assert way[:, 0] == pytest.approx([1.08, 1.02, 0.96, 0.90]) and not way[:, 1].any()
+    rest = track.take_way_back(1.0)                   # the track ends where the way back did
+    assert rest[:, 0] == pytest.approx([0.84]) and not len(track.take_way_back(1.0))
+
+
+def _in_a_wedge():
+    """A 3 x 3 m floor at 1 cm cells with a slot that narrows from 0.56 to 0.505 m between
+    x = 1.5 and 2.1 m, and a disc body of 0.25 m driven along it from x = 1 until a wall
+    holds it: the world's ClearanceMap, the body's track and where it was held."""
+    from world_sim.kinematics import ClearanceMap, advance
+    from world_sim.occupancy_map import OccupancyMap
+    res, n = 0.01, 300
+    free = np.ones((n, n), dtype=bool)
+    free[0, :] = free[-1, :] = free[:, 0] = free[:, -1] = False
+    xs = (np.arange(n) + 0.5) * res
+    for c in range(150, 210):
+        half = 0.28 - (0.28 - 0.2525) * (xs[c] - 1.5) / 0.6
+        free[(np.abs(xs - 1.5) > half), c] = False    # the slot is centred on y = 1.5
+    world = ClearanceMap.from_map(OccupancyMap(free=free, resolution_m=res, origin_x_m=0.0, origin_y_m=0.0, name="wedge"))
+    args = (world.wall_u8, world.cell_clearance_lb_m, 0.0, 0.0, res, 0.25, 0.01)
+    track = Track(keep_m=0.5)
+    x, y, yaw = 1.0, 1.5, 0.005                      # a little askew, as a drifted pose drives
+    for _ in range(400):
+        track.add(x, y)
+        x, y, yaw, _, held = advance(*args, x, y, yaw, 0.3, 0.0, 0.05)
+        if held:
+            return args, track, (x, y, yaw)
+    raise AssertionError("the body never got held")
+
+
+def test_a_body_wedged_in_a_slot_backs_out_along_its_track_where_straight_back_is_blocked():
+    from world_sim.kinematics import advance
+    args, track, (x, y, yaw) = _in_a_wedge()
+    assert x > 1.7
+    yaw += 1.2                                       # a recovery turned it on the spot
+    _, _, _, _, held = advance(*args, x, y, yaw, -0.1, 0.0, 0.5)
+    assert held                                      # reversing straight back on its new heading rubs a side
+    retrace = Retrace(speed_mps=0.1, max_omega_radps=1.0)
+    retrace.start(track.take_way_back(0.5), x, y, yaw, 0)
+    t_us, x0 = 0, x
+    while (cmd := retrace.command(x, y, yaw, t_us)) is not None:
+        x, y, yaw, _, held = advance(*args, x, y, yaw, cmd[0], cmd[1], 0.05)
+        assert not held
+        t_us += 50_000
+    assert x0 - x >= 0.45 and abs(y - 1.5) < 0.05 and t_us < 20e6

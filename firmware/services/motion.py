@@ -162,7 +162,7 @@ class StallDetector:
             self._reference = None
             return None
         ref = self._reference
-        restart = ref is None or abs(_wrap(yaw_rad - ref[2])) > SLIP_MAX_TURN_RAD
+        restart = ref is None or abs(wrap_rad(yaw_rad - ref[2])) > SLIP_MAX_TURN_RAD
         if not restart and math.hypot(x_m - ref[0], y_m - ref[1]) < self.p.slip_check_m:
             return None
         points = scan_points(angle_min_rad, angle_increment_rad, ranges_m, range_max_m)
@@ -194,7 +194,7 @@ def travel_share_seen(ref_points: np.ndarray, points: np.ndarray, dx_m: float, d
     fits clearly better than the whole travel (SLIP_CLEAR_FIT), e.g. in a corridor without
     features, where every share fits alike."""
     c, s = math.cos(ref_yaw_rad), math.sin(ref_yaw_rad)
-    turn = _wrap(yaw_rad - ref_yaw_rad)
+    turn = wrap_rad(yaw_rad - ref_yaw_rad)
     ct, st = math.cos(turn), math.sin(turn)
     turned = points @ np.array([[ct, st], [-st, ct]])                    # rotated into the earlier frame
     misfit, counted = kernels.slip_misfits(
@@ -210,6 +210,6 @@ def travel_share_seen(ref_points: np.ndarray, points: np.ndarray, dx_m: float, d
     return float(SLIP_SHARES[best])
 
 
-def _wrap(a_rad):
+def wrap_rad(a_rad):
     """Angles (a float or an array) into [-pi, pi)."""
     return (a_rad + math.pi) % (2 * math.pi) - math.pi

@@ -16,6 +16,7 @@ import numpy as np
 
 from firmware.params import ExplorationParams
 from firmware.services.local_map import BinnedScan
+from firmware.services.motion import wrap_rad
 
 BACK_OFF = "back_off"
 ROTATE = "rotate"
@@ -67,6 +68,95 @@ class BackOff:
                 math.hypot(x_m - self._from_xy[0], y_m - self._from_xy[1]) < self._distance_m:
             return -self.speed_mps, 0.0
         self._from_xy = None
+        return None
+
+
+# Points of the track the robot keeps of its own travel (Track), this far apart.
+TRACK_SPACING_M = 0.05
+# Retrace turns on the spot while the next point lies more than this off its heading: in a
+# gap as wide as the body, an arc would sweep its side into what it touches.
+RETRACE_TURN_ON_SPOT_RAD = 0.1
+RETRACE_HEADING_GAIN = 2.0      # turn rate per radian of heading error while driving
+
+
+class Track:
+    """The last stretch of the robot's own travel by odometry (uncorrected: the wheels' path,
+    without the jumps localisation adds), a point every TRACK_SPACING_M, newest last: the way
+    back out of a place the body got into. Over half a metre odometry drifts by millimetres."""
+
+    def __init__(self, keep_m: float) -> None:
+        self._keep = int(math.ceil(keep_m / TRACK_SPACING_M)) + 1
+        self._points: list[tuple[float, float]] = []
+
+    def add(self, x_m: float, y_m: float) -> None:
+        pts = self._points
+        # Back where it was a point ago (a back-off): the track is the way here, not every move.
+        while len(pts) >= 2 and math.hypot(x_m - pts[-2][0], y_m - pts[-2][1]) < 0.5 * TRACK_SPACING_M:
+            pts.pop()
+        if not pts or math.hypot(x_m - pts[-1][0], y_m - pts[-1][1]) >= TRACK_SPACING_M:
+            pts.append((x_m, y_m))
+            if len(pts) > self._keep:
+                del pts[0]
+
+    def take_way_back(self, distance_m: float) -> np.ndarray:
+        """The points back along the track from the newest, up to distance_m of it, nearest
+        first, as (n, 2); they leave the track, which ends where the way back does (driving
+        it does not make a new way back into the place just left)."""
+        pts = self._points
+        way: list[tuple[float, float]] = []
+        length_m = 0.0
+        while len(pts) >= 2 and length_m < distance_m:
+            (x1, y1), (x0, y0) = pts[-1], pts[-2]
+            length_m += math.hypot(x1 - x0, y1 - y0)
+            pts.pop()
+            way.append((x0, y0))
+        return np.array(way, np.float64).reshape(-1, 2)
+
+
+class Retrace:
+    """Drive through a list of points in order (a Track's way back), forwards or backwards,
+    whichever faces the first point with less turning: turn on the spot to face each point,
+    then drive to it straight, at speed_mps. Over when the last point is reached or at a
+    deadline (a body held where it is ends there)."""
+
+    def __init__(self, speed_mps: float, max_omega_radps: float) -> None:
+        self.speed_mps = speed_mps
+        self.max_omega_radps = max_omega_radps
+        self._points = np.zeros((0, 2))
+        self._next = 0
+        self._sign = 1.0
+        self._deadline_us = 0
+
+    @property
+    def active(self) -> bool:
+        return self._next < len(self._points)
+
+    def start(self, points: np.ndarray, x_m: float, y_m: float, yaw_rad: float, now_us: int) -> None:
+        self._points = np.asarray(points, np.float64).reshape(-1, 2)
+        self._next = 0
+        if not len(self._points):
+            return
+        ahead = math.atan2(self._points[0, 1] - y_m, self._points[0, 0] - x_m)
+        self._sign = 1.0 if abs(wrap_rad(ahead - yaw_rad)) <= math.pi / 2 else -1.0
+        length_m = float(np.hypot(*np.diff(np.vstack(([x_m, y_m], self._points)), axis=0).T).sum())
+        self._deadline_us = now_us + step_time_us(length_m, self.speed_mps) + \
+            step_time_us(math.pi, self.max_omega_radps)
+
+    def command(self, x_m: float, y_m: float, yaw_rad: float, now_us: int) -> tuple[float, float] | None:
+        """(v, omega) for this control tick, or None once it is over."""
+        while self.active and now_us < self._deadline_us:
+            gx, gy = self._points[self._next]
+            if math.hypot(gx - x_m, gy - y_m) < 0.5 * TRACK_SPACING_M:
+                self._next += 1
+                continue
+            facing = yaw_rad if self._sign > 0 else yaw_rad + math.pi
+            err = wrap_rad(math.atan2(gy - y_m, gx - x_m) - facing)
+            omega = max(-self.max_omega_radps, min(self.max_omega_radps, RETRACE_HEADING_GAIN * err))
+            if abs(err) > RETRACE_TURN_ON_SPOT_RAD:
+                return 0.0, omega
+            return self._sign * self.speed_mps, omega
+        self._points = np.zeros((0, 2))
+        self._next = 0
         return None
 
 
