@@ -2,6 +2,7 @@
 wheels do not move backs off, marks what blocks it (unless its LiDAR shows it), drops its
 targets for good, and still terminates."""
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -100,6 +101,45 @@ def test_after_a_stall_the_robot_backs_off_before_driving_on_where_the_lidar_sho
         assert reversing * 50_000 == pytest.approx(step_time_us(P.stall_back_off_m, P.min_speed_mps), abs=50_000)
         assert all(v == -P.min_speed_mps for v in v_mps[first:first + reversing])
         assert fake.commands[first + reversing] != (0.0, 0.0)
+
+
+class HeldAheadHal(ScriptedHal):
+    """ScriptedHal whose wheels drive the commanded (v, omega) (a unicycle), until the body
+    reaches x = held_at_x_m: from there on nothing moves it forward."""
+
+    def __init__(self, ranges_m: np.ndarray, held_at_x_m: float):
+        super().__init__(ranges_m)
+        self.held_at_x_m = held_at_x_m
+        self.x = self.y = self.yaw = self.v = 0.0
+
+    def read(self):
+        return OdometrySample(self.t_us, self.x, self.y, self.yaw, self.v, 0.0)
+
+    def command(self, v_mps, omega_radps):
+        super().command(v_mps, omega_radps)
+        x = self.x + v_mps * 0.05 * math.cos(self.yaw)
+        self.v = v_mps if x < self.held_at_x_m or x < self.x else 0.0
+        self.x, self.y = self.x + self.v * 0.05 * math.cos(self.yaw), self.y + self.v * 0.05 * math.sin(self.yaw)
+        self.yaw += omega_radps * 0.05
+
+
+def test_after_a_stall_with_no_room_behind_the_robot_drives_back_the_way_it_came():
+    ranges = np.full(360, 3.0)
+    ranges[150:210] = 10.0          # the corridor leading away, straight ahead (beam 180)
+    ranges[:15] = ranges[-15:] = 0.3    # no room straight behind
+    fake = HeldAheadHal(ranges, held_at_x_m=1.0)
+    # The scripted LiDAR sees the same ranges wherever the body is: no slip check.
+    agent = ExplorerAgent(fake.hal(), dataclasses.replace(P, slip_check_m=0.0), scheme="independent")
+    agent.setup()
+    while not agent.bumps and fake.t_us < 600e6:
+        fake.run(agent, fake.t_us / 1e6 + 0.05)
+    assert fake.x == pytest.approx(1.0, abs=0.05) and agent.stats()["stall_back_offs"] == 0
+    held_x, xs = fake.x, []
+    while fake.t_us < 600e6 and (len(xs) < 2 or xs[-1] <= xs[-2] + 1e-9):     # until it heads on again
+        fake.run(agent, fake.t_us / 1e6 + 0.05)
+        xs.append(fake.x)
+    assert agent.stats()["stall_retraces"] == 1
+    assert held_x - min(xs) == pytest.approx(P.stall_retrace_m, abs=0.06)
 
 
 def test_information_at_a_vertex_falls_and_rises_again_with_a_new_revision_each_time():
