@@ -52,9 +52,12 @@ def test_two_robots_stop_by_themselves_and_cover_the_cave(two_robots):
     assert all(a.done for a in r.agents) and r.coverage >= 0.97 and r.robots_in_wall == 0
     assert r.radio["duty_cycle_violations"] == 0
     sent = {name for air in r.air_frames for name, _ in decode_frame(air.payload).frame.records}
-    assert {"mrvtx", "mrud"} <= sent <= {"mrvtx", "mredge", "mrud", "pose"}
+    assert {"mrvtx", "mrud", "mrlink"} <= sent <= {"mrvtx", "mredge", "mrud", "mrlink", "pose"}
     stats = r.to_json()["explorer_stats"]
     assert min(stats["vertices_built"]) >= 5 and min(stats["teammates_merged"]) == 1
+    # Each robot told its merge and heard the other's; two robots' links only confirm.
+    assert min(stats["links_sent"]) >= 1 and min(stats["links_heard"]) >= 1
+    assert max(stats["merges_outvoted"]) == 0 and max(stats["merges_transitive"]) == 0
 
 
 def test_merged_teammates_count_in_planning(two_robots):

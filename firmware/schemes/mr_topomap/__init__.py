@@ -4,14 +4,14 @@ between robots WITHOUT a common frame by recognising shared places.
 
 What exists:
 
-    params.py       the geometry (spec section 2); the tuning knobs the spec names are
-                    mrtopo_* in firmware/params.py (--set)
+    params.py       the geometry and the tuning knobs (spec sections 2, 4, 5), declared
+                    with units and ranges (--set mrtopomap.NAME=VALUE)
     descriptor.py   the place descriptor from a 2-D LiDAR scan: 32 bins of log range in the
                     robot's own frame, 4-bit z-scored; rotation-invariant score, the relative
                     yaw from its best circular shift; virtual profiles of an own map
     records.py      the dialect (id 5, registered through the scheme): mrvtx 30 B (vertex,
                     descriptor, unexplored directions, its line-17 edge), mredge 6 B, mrud
-                    6 B, mrlink 9 B (defined, not sent yet)
+                    6 B, mrlink 9 B
     directions.py   unexplored directions from the own map (16 sectors x distance class),
                     explored-direction updates, the per-vertex book of open sectors
     vertices.py     Algorithm 1 fed with poses and scans: new vertices and re-entry edges
@@ -19,6 +19,10 @@ What exists:
                     (own vertices, optionally a profile grid of the own map), deterministic
                     consensus, ratio test, occupancy and view checks against the own map; a
                     pure function of the records held (so merges revise themselves)
+    links.py        merges told on the air (mrlink): each robot's direct merges weighed
+                    against what teammates' links say (the inverse, compositions through a
+                    third robot), outvoted when the others agree elsewhere, and merges by
+                    composition where the robot could not merge itself
     literal.py      the paper's own merge for the ablation: translation only, first match,
                     SMMR's 0.9-sigma rule
     scheme.py       the Scheme (`mrtopomap`, `mrtopomap:literal` = `mrtopomap-literal`):
@@ -35,7 +39,6 @@ a merged teammate evidently saw left to it, and routes beyond the local window a
 robot's own places only.
 
 What does not exist yet: routing along the merged graph (teammates' edges), the anti-trap
-rule (III-D3), mrlink (transitive merges, the inverse-consistency check on the air),
-re-sending records a teammate missed (a record lost on the air is lost), stretching
+rule (III-D3), re-sending records a teammate missed (a record lost on the air is lost), stretching
 d_vertex to a slower band's budget (5.1).
 """

@@ -79,6 +79,9 @@ class MrTopoParams:
     merge_period_s: float = number(5.0, 's', 0.5, 3600.0, "teammates' frames are estimated again this often (if "
                                    "their records or the own map changed)")
     grid_period_s: float = number(20.0, 's', 1.0, 3600.0, "the own map's profile grid is rendered again this often")
+    link_period_s: float = number(60.0, 's', 0.0, 3600.0, "own direct merges go on the air (mrlink) when made, moved "
+                                  "or withdrawn, and again this often; teammates' are weighed against them "
+                                  "(links.py; 0: none sent or used)")
     w: float = number(0.5, '', 0.0, 1.0, "eq. (1)'s weight of the own vertices' centre against merged teammates'")
     team_near_m: float = number(3.0, 'm', 0.0, 100.0, "an own waypoint this close to a merged teammate's vertex (in "
                                 "line of sight, no open direction near) is left to the team (0: never)")

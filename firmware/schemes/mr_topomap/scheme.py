@@ -13,7 +13,9 @@ shared frame, and runs with `--frames own`.
 Per teammate it estimates T_own<-teammate from the records held (merge.py: descriptor
 hypotheses against its own vertices and a profile grid of its own map, consensus, ratio
 test, occupancy and view checks; a pure function of the records, so merges revise
-themselves), every merge_period_s when something changed. Variant `literal`: the
+themselves), every merge_period_s when something changed, sends its direct merges as
+`mrlink` records and weighs them against its teammates' (links.py: outvoted merges,
+merges by composition). Variant `literal`: the
 paper's own translation-only merge on the first match, with SMMR's outlier rule
 (literal.py), as an ablation.
 
@@ -57,10 +59,12 @@ from firmware.scheduler import Task
 from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, Candidate, OwnPlaces, PlanningView, Scheme,
                                    Services, cost_along_graph)
 from firmware.schemes.mr_topomap import directions as dirs
+from firmware.schemes.mr_topomap import links
 from firmware.schemes.mr_topomap.literal import LiteralMerge
-from firmware.schemes.mr_topomap.merge import SE2, MergeResult, OwnMap, ProfileGrid, TeammateMerge, VertexSet
+from firmware.schemes.mr_topomap.merge import SE2, MergeResult, OwnMap, ProfileGrid, TeammateMerge, VertexSet, wrap
 from firmware.schemes.mr_topomap.params import DEFAULT, MrTopoParams
-from firmware.schemes.mr_topomap.records import DIALECT, NO_VERTEX, sector_class, vertex_from_values, vertex_values
+from firmware.schemes.mr_topomap.records import (DIALECT, NO_VERTEX, Link, link_values, sector_class,
+                                                 vertex_from_values, vertex_values)
 from firmware.schemes.mr_topomap.vertices import NewVertex, Place, ReEntry, VertexBuilder
 from firmware.services.grid_paths import lines_of_sight, nearest_traversable
 from firmware.services.targets import Target
@@ -69,7 +73,7 @@ from hal.samples import OdometrySample
 _FOUR = ndimage.generate_binary_structure(2, 1)
 SNAP_M = 2.0              # a direction's goal: the reachable cell nearest its point, this close at most
 UNREACHABLE_CYCLES = 3    # a direction in the window with no reachable cell near it this many plans is given up here
-_OWN_TYPES = ("mrvtx", "mredge", "mrud")
+_OWN_TYPES = ("mrvtx", "mredge", "mrud", "mrlink")
 
 
 class Direction(NamedTuple):
@@ -118,7 +122,11 @@ class MrTopoMap(Scheme):
         self._grid_us: int | None = None
         self._grid_vertices = -1
         self._dirty: set[int] = set()
-        self._merged: dict[int, SE2] = {}                  # teammate -> T_own<-teammate
+        self._direct: dict[int, SE2] = {}                  # teammate -> T_own<-teammate, the own merge
+        self._merged: dict[int, SE2] = {}                  # ... weighed against teammates' links (links.py)
+        self.resolved: dict[int, links.Resolved] = {}
+        self._links: dict[tuple[int, int], SE2] = {}       # (sender, peer) -> T_sender<-peer heard
+        self._links_sent: dict[int, tuple[SE2 | None, int]] = {}   # peer -> what was sent last, when
         self._team_xy: dict[int, np.ndarray] = {}          # teammate -> its vertices in the own frame
         self._team_keys: dict[int, list[tuple[int, int]]] = {}
         self._merged_places: list[Place] = []
@@ -132,7 +140,8 @@ class MrTopoMap(Scheme):
         self.counts = dict.fromkeys((
             "vertices_sent", "reentry_edges_sent", "ud_records_sent", "vertices_heard", "edges_heard", "ud_heard",
             "goals_taken", "directions_explored", "directions_given_up", "waypoints_left_to_team", "merge_runs",
-            "grid_renders", "records_dropped_by_link", "vertex_ids_exhausted", "wake_ups"), 0)
+            "grid_renders", "records_dropped_by_link", "vertex_ids_exhausted", "wake_ups", "links_sent",
+            "links_heard"), 0)
 
     def tasks(self) -> list[Task]:
         return [Task("mrtopo_merge", 1.0 / self.pp.merge_period_s, self._task_merge)]
@@ -210,7 +219,14 @@ class MrTopoMap(Scheme):
         elif rtype == "mrud":
             self.book.clear((values["owner_id"], values["vertex_id"]), values["clear_mask"])
             self.counts["ud_heard"] += 1
-        # mrlink (transitive merges) is not used yet
+        elif rtype == "mrlink":
+            lk = Link(values["sender_id"], values["peer_id"], values["dx_dm"], values["dy_dm"], values["dyaw"],
+                      values["support"])
+            if lk.support:
+                self._links[(lk.sender, lk.peer)] = links.transform_of(lk)
+            else:
+                self._links.pop((lk.sender, lk.peer), None)
+            self.counts["links_heard"] += 1
 
     # --- merging (Algorithm 2, frame-free) ------------------------------------------
     def _task_merge(self, now_us: int) -> None:
@@ -220,7 +236,6 @@ class MrTopoMap(Scheme):
         if self.variant != "literal":
             fresh_map = self._refresh_grid(now_us)
         own = self._own_vertices()
-        changed = False
         for j in sorted(self.mergers):
             # The literal merge also matches own vertices built since against what it holds.
             if j not in self._dirty and not fresh_map and self.variant != "literal":
@@ -228,15 +243,49 @@ class MrTopoMap(Scheme):
             r = self.mergers[j].update(own, self._grid, self._own_map, own_map_token=self._grid_token)
             self.counts["merge_runs"] += 1
             self.results[j] = r
-            was = self._merged.pop(j, None)
+            self._direct.pop(j, None)
             if r.merged:
-                self._merged[j] = r.T
-            if (was is None) == r.merged or (r.merged and was != r.T):
-                changed = True
+                self._direct[j] = r.T
         self._dirty = set()
+        if self._with_links:
+            self._send_links(now_us)
+            centres = {j: m.vertices.xy.mean(axis=0) for j, m in self.mergers.items() if len(m.vertices)}
+            self.resolved = links.resolve(self.me, self._direct, self._links, centres, self.pp)
+            merged = {j: r.T for j, r in self.resolved.items()}
+        else:
+            merged = dict(self._direct)
+        changed = merged != self._merged
+        self._merged = merged
         self._refresh_team()
         if changed:
             self._regoal = True          # III-D3 (c): right after a merge
+
+    @property
+    def _with_links(self) -> bool:
+        return self.variant != "literal" and self.pp.link_period_s > 0
+
+    def _send_links(self, now_us: int) -> None:
+        """The own direct merges on the air (links.py): when made, moved or withdrawn, and
+        again every link_period_s (a lost record is made good; a withdrawal, support 0, too)."""
+        period_us = int(self.pp.link_period_s * 1e6)
+        for j in sorted(set(self._direct) | set(self._links_sent)):
+            T = self._direct.get(j)
+            last = self._links_sent.get(j)
+            if last is not None and now_us - last[1] < period_us and not self._link_moved(j, last[0], T):
+                continue
+            lk = links.link_of(self.me, j, T if T is not None else SE2(0.0, 0.0, 0.0),
+                               self.results[j].support if T is not None else 0)
+            self._send("mrlink", link_values(lk), PRIORITY_INFO, key=("mrlink", j))
+            self._links_sent[j] = (T, now_us)
+            self.counts["links_sent"] += 1
+
+    def _link_moved(self, j: int, sent: SE2 | None, now: SE2 | None) -> bool:
+        if sent is None or now is None:
+            return (sent is None) != (now is None)
+        c = self.mergers[j].vertices.xy.mean(axis=0)
+        d = sent.apply(c) - now.apply(c)
+        return math.hypot(float(d[0]), float(d[1])) > links.LINK_MOVE_M or \
+            abs(float(wrap(sent.psi - now.psi))) > links.LINK_TURN_RAD
 
     def _refresh_grid(self, now_us: int) -> bool:
         """The profile grid and own map for the merge's checks, rendered again every
@@ -509,7 +558,8 @@ class MrTopoMap(Scheme):
 
     # --- for the host -----------------------------------------------------------------
     def frame_merges(self) -> dict[int, SE2]:
-        """Teammate -> T_own<-teammate, for the teammates merged now."""
+        """Teammate -> T_own<-teammate, for the teammates merged now (direct merges weighed
+        against teammates' links, and merges by composition)."""
         return dict(self._merged)
 
     def teammate_vertex_xy(self, j: int) -> np.ndarray:
@@ -526,6 +576,8 @@ class MrTopoMap(Scheme):
                 "teammates_heard": len(self.mergers), "teammates_merged": len(self._merged),
                 "merges": sum(m.merges for m in ms), "unmerges": sum(m.unmerges for m in ms),
                 "merge_corrections": sum(m.corrections for m in ms),
+                "merges_outvoted": sum(r.source == "outvoted" for r in self.resolved.values()),
+                "merges_transitive": sum(r.source == "transitive" for r in self.resolved.values()),
                 "open_directions": len(self.book.open_keys())}
 
     def drawables(self) -> dict:
