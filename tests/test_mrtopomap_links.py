@@ -43,13 +43,17 @@ def test_agreeing_links_keep_the_direct_merges_and_merge_the_rest_by_composition
     truth = _truth(4, rng)
     me = 0
     direct = {1: _rel(truth, 0, 1)}                               # robot 0 merged robot 1 only
-    heard = {(1, 2): _rel(truth, 1, 2), (2, 1): _rel(truth, 2, 1),   # 1 and 2 merged each other
-             (3, 2): _rel(truth, 3, 2)}                           # 3 merged 2; nobody merged 3 to 0 or 1
+    heard = {(1, 2): _rel(truth, 1, 2), (2, 0): _rel(truth, 2, 0),   # 1 merged 2, 2 merged 0
+             (3, 2): _rel(truth, 3, 2), (3, 0): _rel(truth, 3, 0)}   # 3 merged 2 and 0
     centres = {1: CENTRE, 2: CENTRE, 3: CENTRE}
     out = links.resolve(me, direct, heard, centres, DEFAULT)
     assert out[1].source == "direct" and out[1].T == direct[1]
     assert out[2].source == "transitive" and _close(out[2].T, _rel(truth, 0, 2), 1e-6, 1e-9)
-    assert 3 not in out            # 3 ties to 2, not to anything robot 0 merged directly
+    assert out[2].agreeing == 2
+    # 3's one tie to robot 0 is its own merge of 0: one robot's word, not taken up.
+    assert 3 not in out
+    # Nor is 2's, without the composition through 1 that confirms it.
+    assert 2 not in links.resolve(me, direct, {(2, 0): _rel(truth, 2, 0)}, centres, DEFAULT)
 
 
 @given(st.integers(0, 2**32 - 1), st.floats(math.radians(30), math.radians(180)))

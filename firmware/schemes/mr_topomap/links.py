@@ -17,8 +17,10 @@ else), and:
 - a direct merge stands unless a group that excludes it holds more estimates than its own
   group does; then it is outvoted, and that group's first estimate takes its place (a merge
   turned by 180 degrees in a maze, say, against the right one two teammates agree on);
-- a teammate not merged directly is merged by the largest group, if no other group is as
-  large (a transitive merge: the robots' areas need not overlap at all).
+- a teammate not merged directly is merged by the largest group if it holds at least two
+  estimates and no other group is as large (a transitive merge: the robots' areas need not
+  overlap at all). One estimate is one robot's merge: in a maze a wrong one, adopted by
+  the others, spread to the whole team within seconds (maze_a, seed 1).
 
 Only direct merges are sent, so no link echoes a conclusion drawn from links.
 """
@@ -123,6 +125,6 @@ def resolve(me: int, direct: dict[int, SE2], links: dict[tuple[int, int], SE2], 
                 out[j] = Resolved(rival[0].T, "outvoted", len(ests), len(rival))
             else:
                 out[j] = Resolved(direct[j], "direct", len(ests), len(own))
-        elif len(gs) == 1 or len(gs[0]) > len(gs[1]):
+        elif len(gs[0]) >= 2 and (len(gs) == 1 or len(gs[0]) > len(gs[1])):
             out[j] = Resolved(gs[0][0].T, "transitive", len(ests), len(gs[0]))
     return out

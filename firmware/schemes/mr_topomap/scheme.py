@@ -141,7 +141,7 @@ class MrTopoMap(Scheme):
             "vertices_sent", "reentry_edges_sent", "ud_records_sent", "vertices_heard", "edges_heard", "ud_heard",
             "goals_taken", "directions_explored", "directions_given_up", "waypoints_left_to_team", "merge_runs",
             "grid_renders", "records_dropped_by_link", "vertex_ids_exhausted", "wake_ups", "links_sent",
-            "links_heard"), 0)
+            "links_heard", "merges_outvoted", "merges_transitive"), 0)
 
     def tasks(self) -> list[Task]:
         return [Task("mrtopo_merge", 1.0 / self.pp.merge_period_s, self._task_merge)]
@@ -250,7 +250,11 @@ class MrTopoMap(Scheme):
         if self._with_links:
             self._send_links(now_us)
             centres = {j: m.vertices.xy.mean(axis=0) for j, m in self.mergers.items() if len(m.vertices)}
+            was = {j: r.source for j, r in self.resolved.items()}
             self.resolved = links.resolve(self.me, self._direct, self._links, centres, self.pp)
+            for j, r in self.resolved.items():
+                if r.source != "direct" and was.get(j) != r.source:
+                    self.counts[f"merges_{r.source}"] += 1
             merged = {j: r.T for j, r in self.resolved.items()}
         else:
             merged = dict(self._direct)
@@ -576,8 +580,6 @@ class MrTopoMap(Scheme):
                 "teammates_heard": len(self.mergers), "teammates_merged": len(self._merged),
                 "merges": sum(m.merges for m in ms), "unmerges": sum(m.unmerges for m in ms),
                 "merge_corrections": sum(m.corrections for m in ms),
-                "merges_outvoted": sum(r.source == "outvoted" for r in self.resolved.values()),
-                "merges_transitive": sum(r.source == "transitive" for r in self.resolved.values()),
                 "open_directions": len(self.book.open_keys())}
 
     def drawables(self) -> dict:
