@@ -71,6 +71,23 @@ def test_a_turned_direct_merge_is_outvoted_by_the_inverse_and_a_composition_that
     assert out[0].source == "direct" and out[0].T == wrong
 
 
+@given(st.integers(0, 2**32 - 1), st.floats(math.radians(30), math.radians(180)))
+def test_a_pair_fooled_alike_stands_against_one_composition_and_falls_to_two(seed, turn):
+    """Robots 0 and 1 merged each other turned by the same look-alike places: the direct
+    merge and the inverse agree, and count as one piece of evidence."""
+    rng = np.random.default_rng(seed)
+    truth = _truth(4, rng)
+    bad = SE2(turn, 1.0, 0.0)                         # how the fooled pair is off, in robot 1's frame
+    wrong_10 = bad.compose(_rel(truth, 1, 0))
+    direct = {0: wrong_10, 2: _rel(truth, 1, 2), 3: _rel(truth, 1, 3)}
+    heard = {(0, 1): wrong_10.inverse(), (2, 0): _rel(truth, 2, 0)}
+    out = links.resolve(1, direct, heard, {0: CENTRE, 2: CENTRE, 3: CENTRE}, DEFAULT)
+    assert out[0].source == "direct" and out[0].T == wrong_10
+    heard[(0, 3)] = _rel(truth, 0, 3)                 # a second third robot: 3 merged with 0 too
+    out = links.resolve(1, direct, heard, {0: CENTRE, 2: CENTRE, 3: CENTRE}, DEFAULT)
+    assert out[0].source == "outvoted" and _close(out[0].T, _rel(truth, 1, 0), 1e-6, 1e-9) and out[0].agreeing == 2
+
+
 @settings(max_examples=50)
 @given(st.integers(0, 2**32 - 1), st.randoms(use_true_random=False))
 def test_the_outcome_is_a_function_of_the_estimates_held_not_of_the_order_heard(seed, shuffler):

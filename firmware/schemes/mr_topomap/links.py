@@ -12,15 +12,17 @@ then holds several estimates of how a teammate j's frame lies in its own:
 Two estimates agree when they put the centre of j's vertices within cluster_sep_m of each
 other and their yaws within cluster_sep_deg. Per teammate the estimates fall into groups of
 agreeing ones (in a fixed order, so the outcome depends on the estimates held and nothing
-else), and:
+else). A group's weight is the number of independent pieces of evidence in it: the direct
+merge and the inverse count once together (both rest on the same places the two robots
+saw; a look-alike pair fools both alike, and in a maze two robots held each other's frame
+turned, in agreement, for minutes), each robot a composition goes through once more. Then:
 
-- a direct merge stands unless a group that excludes it holds more estimates than its own
-  group does; then it is outvoted, and that group's first estimate takes its place (a merge
-  turned by 180 degrees in a maze, say, against the right one two teammates agree on);
-- a teammate not merged directly is merged by the largest group if it holds at least two
-  estimates and no other group is as large (a transitive merge: the robots' areas need not
-  overlap at all). One estimate is one robot's merge: in a maze a wrong one, adopted by
-  the others, spread to the whole team within seconds (maze_a, seed 1).
+- a direct merge stands unless a group that excludes it weighs at least two and more than
+  its own group; then it is outvoted, and that group's first estimate takes its place;
+- a teammate not merged directly is merged by the heaviest group if it weighs at least two
+  and no other group as much (a transitive merge: the robots' areas need not overlap at
+  all). One robot's merge alone is not taken up: in a maze a wrong one, adopted by the
+  others, spread to the whole team within seconds (maze_a, seed 1).
 
 Only direct merges are sent, so no link echoes a conclusion drawn from links.
 """
@@ -66,7 +68,7 @@ class Resolved(NamedTuple):
     T: SE2
     source: str         # "direct", "outvoted" (replaced by the group that outnumbered it), "transitive"
     estimates: int      # estimates held for this teammate
-    agreeing: int       # ... in the group that decided
+    agreeing: int       # independent evidence (weight) in the group that decided
 
 
 def estimates(me: int, j: int, direct: dict[int, SE2], links: dict[tuple[int, int], SE2]) -> list[Estimate]:
@@ -93,6 +95,11 @@ def agree(a: SE2, b: SE2, centre_xy: np.ndarray, params: MrTopoParams) -> bool:
         abs(float(wrap(a.psi - b.psi))) <= params.cluster_sep_rad
 
 
+def weight(group: list[Estimate]) -> int:
+    """Independent evidence in a group: the pair's own (direct, inverse) once, each third robot once."""
+    return len({e.via for e in group})
+
+
 def groups(ests: list[Estimate], centre_xy: np.ndarray, params: MrTopoParams) -> list[list[Estimate]]:
     """Estimates in groups: each joins the first group whose first estimate it agrees with."""
     out: list[list[Estimate]] = []
@@ -117,14 +124,14 @@ def resolve(me: int, direct: dict[int, SE2], links: dict[tuple[int, int], SE2], 
         ests = estimates(me, j, direct, links)
         if not ests:
             continue
-        gs = sorted(groups(ests, centres[j], params), key=len, reverse=True)   # stable: first formed first
+        gs = sorted(groups(ests, centres[j], params), key=weight, reverse=True)   # stable: first formed first
         if j in direct:
             own = next(g for g in gs if any(e.source == DIRECT for e in g))
             rival = next((g for g in gs if g is not own), None)
-            if rival is not None and len(rival) >= 2 and len(rival) > len(own):
-                out[j] = Resolved(rival[0].T, "outvoted", len(ests), len(rival))
+            if rival is not None and weight(rival) >= 2 and weight(rival) > weight(own):
+                out[j] = Resolved(rival[0].T, "outvoted", len(ests), weight(rival))
             else:
-                out[j] = Resolved(direct[j], "direct", len(ests), len(own))
-        elif len(gs[0]) >= 2 and (len(gs) == 1 or len(gs[0]) > len(gs[1])):
-            out[j] = Resolved(gs[0][0].T, "transitive", len(ests), len(gs[0]))
+                out[j] = Resolved(direct[j], "direct", len(ests), weight(own))
+        elif weight(gs[0]) >= 2 and (len(gs) == 1 or weight(gs[0]) > weight(gs[1])):
+            out[j] = Resolved(gs[0][0].T, "transitive", len(ests), weight(gs[0]))
     return out
