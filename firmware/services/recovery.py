@@ -2,7 +2,8 @@
 tree, in the order it uses): back off a little if the LiDAR shows room behind, turn once on
 the spot so the LiDAR sees all around again (a door half-seen from an angle, a stale
 obstacle), then retry the target once on a tighter, slower path. Only a target that fails
-again after that is struck or dropped (services.targets).
+again after that is struck or dropped (services.targets). And for a body held where it
+has no room straight behind: the way back along its own track (Track, Retrace).
 
 The behaviour drives from odometry alone: distances and angles are measured from the pose
 where each step began.

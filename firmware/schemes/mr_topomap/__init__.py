@@ -39,6 +39,7 @@ a merged teammate evidently saw left to it, and routes beyond the local window a
 robot's own places only.
 
 What does not exist yet: routing along the merged graph (teammates' edges), the anti-trap
-rule (III-D3), re-sending records a teammate missed (a record lost on the air is lost), stretching
-d_vertex to a slower band's budget (5.1).
+rule (III-D3), re-sending vertex records a teammate missed (one lost on the air is lost;
+mrlink records repeat every link_period_s), stretching d_vertex to a slower band's budget
+(5.1).
 """

@@ -66,7 +66,7 @@ class Estimate(NamedTuple):
 
 class Resolved(NamedTuple):
     T: SE2
-    source: str         # "direct", "outvoted" (replaced by the group that outnumbered it), "transitive"
+    source: str         # "direct", "outvoted" (replaced by the heavier group), "transitive"
     estimates: int      # estimates held for this teammate
     agreeing: int       # independent evidence (weight) in the group that decided
 
