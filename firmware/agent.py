@@ -285,7 +285,7 @@ class ExplorerAgent:
             if self.done:
                 return
         if self.stall.stuck(pose.v_mps):
-            self._on_stall(pose, now_us)
+            self._on_stall(pose, wheels, now_us)
             self._task_planning(now_us)
             if self.done:
                 return
@@ -301,7 +301,7 @@ class ExplorerAgent:
         self.stall.commanded(v)
         self.hal.drive.command(v, omega)
 
-    def _on_stall(self, pose, now_us: int) -> None:
+    def _on_stall(self, pose, wheels: tuple[float, float, float], now_us: int) -> None:
         """Driving but not moving. First back off stall_back_off_m where the last scan shows
         room behind: pressing on stops (a real drive strains, its wheels dig in or slip), and
         the next try starts clear of what held it. Without room straight behind (wedged, held
@@ -314,7 +314,7 @@ class ExplorerAgent:
         instead. (A bump there, 0.7 m wide, closed the only way out of a room of the Intel
         lab: one robot, seed 3, ended at 48 % coverage.) Stalled there
         STALLS_BEFORE_CLOSING_A_GAP times in a row, it marks the bump all the same: the gap
-        is narrower than the map shows."""
+        is narrower than the map shows. wheels: odometry's own pose now (the track's frame)."""
         reach_m = self.p.robot_radius_m + self.p.resolution_m
         touching = something_within(self._binned_last_scan(), pose.yaw_rad, reach_m)
         again = self._last_stall_xy is not None and \
@@ -335,7 +335,7 @@ class ExplorerAgent:
         elif self.p.stall_retrace_m > 0:
             way = self.track.take_way_back(self.p.stall_retrace_m)
             if len(way):
-                self.retrace.start(way, *self.pose.odometry_at(pose.stamp_us), now_us)
+                self.retrace.start(way, *wheels, now_us)
                 self.stall_retraces += 1
         if touching and not wedged:
             self.follower.follow_closely(self.p.follow_closely_after_stall_m)

@@ -33,7 +33,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware.schemes.mr_topomap.merge import SE2, wrap
+from firmware.schemes.mr_topomap.merge import SE2, within, wrap
 from firmware.schemes.mr_topomap.params import MrTopoParams
 from firmware.schemes.mr_topomap.records import DYAW_CODES, MAX_SUPPORT, Link
 
@@ -90,9 +90,7 @@ def estimates(me: int, j: int, direct: dict[int, SE2], links: dict[tuple[int, in
 
 
 def agree(a: SE2, b: SE2, centre_xy: np.ndarray, params: MrTopoParams) -> bool:
-    d = a.apply(centre_xy) - b.apply(centre_xy)
-    return math.hypot(float(d[0]), float(d[1])) <= params.cluster_sep_m and \
-        abs(float(wrap(a.psi - b.psi))) <= params.cluster_sep_rad
+    return within(a, b, centre_xy, params.cluster_sep_m, params.cluster_sep_rad)
 
 
 def weight(group: list[Estimate]) -> int:

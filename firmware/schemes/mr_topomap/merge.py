@@ -138,6 +138,13 @@ class SE2(NamedTuple):
         return SE2(float(wrap(-self.psi)), -(c * self.tx + s * self.ty), -(-s * self.tx + c * self.ty))
 
 
+def within(a: SE2, b: SE2, at_xy, distance_m: float, angle_rad: float) -> bool:
+    """a and b map the point at_xy (in the frame they map from) within distance_m of each
+    other, and their yaws differ by at most angle_rad."""
+    d = a.apply(at_xy) - b.apply(at_xy)
+    return math.hypot(float(d[0]), float(d[1])) <= distance_m and abs(float(wrap(a.psi - b.psi))) <= angle_rad
+
+
 def canonical(vertices: Iterable[Vertex]) -> tuple[Vertex, ...]:
     """One vertex per key, sorted by key; of two different records under one key, the one
     with the smaller bytes (a choice that does not depend on order)."""
@@ -742,10 +749,7 @@ class TeammateMerge(TeammateVertices):
         if r.merged:
             was = self._last_merged
             if was is not None:
-                c = self.vertices.xy.mean(axis=0)
-                d = was.apply(c) - r.T.apply(c)
-                if (math.hypot(*d) > self.p.cluster_sep_m
-                        or abs(float(wrap(was.psi - r.T.psi))) > self.p.cluster_sep_rad):
+                if not within(was, r.T, self.vertices.xy.mean(axis=0), self.p.cluster_sep_m, self.p.cluster_sep_rad):
                     self.corrections += 1
             self._last_merged = r.T
         self._last, self._last_key = r, key

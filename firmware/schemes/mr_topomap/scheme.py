@@ -61,7 +61,7 @@ from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, Candidate, Ow
 from firmware.schemes.mr_topomap import directions as dirs
 from firmware.schemes.mr_topomap import links
 from firmware.schemes.mr_topomap.literal import LiteralMerge
-from firmware.schemes.mr_topomap.merge import SE2, MergeResult, OwnMap, ProfileGrid, TeammateMerge, VertexSet, wrap
+from firmware.schemes.mr_topomap.merge import SE2, MergeResult, OwnMap, ProfileGrid, TeammateMerge, VertexSet, within
 from firmware.schemes.mr_topomap.params import DEFAULT, MrTopoParams
 from firmware.schemes.mr_topomap.records import (DIALECT, NO_VERTEX, Link, link_values, sector_class,
                                                  vertex_from_values, vertex_values)
@@ -286,10 +286,7 @@ class MrTopoMap(Scheme):
     def _link_moved(self, j: int, sent: SE2 | None, now: SE2 | None) -> bool:
         if sent is None or now is None:
             return (sent is None) != (now is None)
-        c = self.mergers[j].vertices.xy.mean(axis=0)
-        d = sent.apply(c) - now.apply(c)
-        return math.hypot(float(d[0]), float(d[1])) > links.LINK_MOVE_M or \
-            abs(float(wrap(sent.psi - now.psi))) > links.LINK_TURN_RAD
+        return not within(sent, now, self.mergers[j].vertices.xy.mean(axis=0), links.LINK_MOVE_M, links.LINK_TURN_RAD)
 
     def _refresh_grid(self, now_us: int) -> bool:
         """The profile grid and own map for the merge's checks, rendered again every
