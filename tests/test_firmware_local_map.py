@@ -183,3 +183,35 @@ def _the_same_map_never_driven(p: ExplorationParams, local_map: LocalMap) -> Loc
 def kernel_path_exists(traversable, a, b) -> bool:
     from firmware import kernels
     return bool(kernels.reachable_cells(traversable, a[0], a[1])[b])
+
+
+def test_an_obstacle_felt_where_the_body_just_was_is_not_marked():
+    """A robot came west along y = 0 to x = 2 m, turned round to the south-east and stalled
+    there: the arc marked ahead reaches back over the way it came. Only the arc's points farther from
+    that way than the body's radius less half a cell are kept, so the way back stays open;
+    the same stall with no path behind it marks the whole arc."""
+    p = ExplorationParams()
+    local_map = LocalMap(p, 0.0, 0.0)
+    for k in range(41):
+        local_map.mark_trail(4.0 - 0.05 * k, 0.0)
+    yaw_rad, reach_m = -0.55, p.robot_radius_m + p.resolution_m
+    local_map.mark_obstacle_ahead(2.0, 0.0, yaw_rad, reach_m)
+    fresh = LocalMap(p, 0.0, 0.0)
+    fresh.mark_obstacle_ahead(2.0, 0.0, yaw_rad, reach_m)
+    arc = np.array(fresh.bumps)
+    assert len(arc) == 7
+    # Distance of each arc point from the way driven (the segment x in [2, 4], y = 0).
+    dx = np.clip(arc[:, 0], 2.0, 4.0) - arc[:, 0]
+    covered = np.hypot(dx, arc[:, 1]) <= p.robot_radius_m - 0.5 * p.resolution_m
+    assert covered.any() and not covered.all()
+    np.testing.assert_allclose(np.array(local_map.bumps).reshape(-1, 2), arc[~covered])
+
+
+def test_the_body_covers_only_its_recent_path():
+    p = ExplorationParams()
+    local_map = LocalMap(p, 0.0, 0.0)
+    for k in range(400):                    # 20 m east
+        local_map.mark_trail(0.05 * k, 0.0)
+    reach_m = p.robot_radius_m - 0.5 * p.resolution_m
+    probe = np.array([[19.0, 0.9 * reach_m], [19.0, 1.1 * reach_m], [1.0, 0.0], [21.0, 0.0]])
+    np.testing.assert_array_equal(local_map.body_covers(probe), [True, False, False, False])

@@ -10,6 +10,7 @@ so.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
@@ -160,6 +161,10 @@ MAX_PASSED_CELLS = 20_000
 # The trail (mark_trail): a point a metre, at most 20 km of them.
 TRAIL_SPACING_M = 1.0
 MAX_TRAIL_POINTS = 20_000
+# The body's recent path (mark_trail), finer: a point every 5 cm over the last 5 m. An
+# obstacle felt where the body has just been is a mark drawn askew, not an obstacle.
+RECENT_SPACING_M = 0.05
+RECENT_PATH_M = 5.0
 
 
 class TeamView(Protocol):
@@ -189,6 +194,7 @@ class LocalMap:
         self._last_passed: tuple[int, int] | None = None
         self._passed_cells = np.zeros((0, 2), np.int64)   # self.passed as an array, for layers()
         self._trail: list[tuple[float, float]] = []         # where the body's centre has been (mark_trail)
+        self._recent: deque[tuple[float, float]] = deque(maxlen=int(round(RECENT_PATH_M / RECENT_SPACING_M)))
         self._fits = PlanningFits(params)
         # The passages of the last ordinary layers (in_passage_at) and their anchor.
         self._passages = np.zeros((0, 0), bool)
@@ -252,17 +258,38 @@ class LocalMap:
     def mark_obstacle_ahead(self, x_m: float, y_m: float, yaw_rad: float, distance_m: float) -> None:
         """Remember an obstacle just ahead of the robot (a short arc across its heading) that
         the LiDAR does not show. Kept apart from the log-odds, so later scans that see free
-        space there cannot erase it and send the robot into the same spot again."""
-        for off in np.linspace(-0.6, 0.6, 7):
-            self.bumps.append((x_m + distance_m * math.cos(yaw_rad + off), y_m + distance_m * math.sin(yaw_rad + off)))
+        space there cannot erase it and send the robot into the same spot again. Points of
+        the arc the body has covered on its recent path (body_covers) are left out: the body
+        was there, so nothing is; an arc drawn across the way the robot came, after it
+        turned at a corner, would shut it in."""
+        offsets = np.linspace(-0.6, 0.6, 7)
+        arc = np.column_stack((x_m + distance_m * np.cos(yaw_rad + offsets), y_m + distance_m * np.sin(yaw_rad + offsets)))
+        covered = self.body_covers(arc)
+        self.bumps.extend((float(bx), float(by)) for (bx, by), c in zip(arc, covered) if not c)
         del self.bumps[:-self.MAX_BUMP_CELLS]  # bounded memory: the oldest are forgotten first
+
+    def body_covers(self, xy_m: np.ndarray) -> np.ndarray:
+        """Per point (n, 2, metres): did the body cover it on its recent path (mark_trail's
+        last RECENT_PATH_M), its centre within the body's radius less half a cell (the
+        pose's error, a mark's cell) of it?"""
+        xy_m = np.asarray(xy_m, np.float64).reshape(-1, 2)
+        if not self._recent or not len(xy_m):
+            return np.zeros(len(xy_m), bool)
+        path = np.array(self._recent, np.float64)
+        d2 = ((xy_m[:, None, :] - path[None, :, :]) ** 2).sum(axis=2).min(axis=1)
+        reach_m = self.p.robot_radius_m - 0.5 * self.p.resolution_m
+        return d2 <= reach_m * reach_m
 
     def forget_bumps(self) -> None:
         """Forget every obstacle mark_obstacle_ahead remembered."""
         self.bumps.clear()
 
     def mark_trail(self, x_m: float, y_m: float) -> None:
-        """The body's centre is here now: keep a point every TRAIL_SPACING_M of the way."""
+        """The body's centre is here now: keep a point every TRAIL_SPACING_M of the way, and
+        every RECENT_SPACING_M of its last RECENT_PATH_M."""
+        recent = self._recent
+        if not recent or math.hypot(x_m - recent[-1][0], y_m - recent[-1][1]) >= RECENT_SPACING_M:
+            recent.append((x_m, y_m))
         if len(self._trail) < MAX_TRAIL_POINTS and (
                 not self._trail or math.hypot(x_m - self._trail[-1][0], y_m - self._trail[-1][1]) >= TRAIL_SPACING_M):
             self._trail.append((x_m, y_m))
