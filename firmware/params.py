@@ -155,6 +155,8 @@ class ExplorationParams:
     scan_match_step_m: float = _p(0.025, 'm', 0.001, 1.0, 'scan matching tries positions this far apart')
     scan_match_search_rad: float = _p(0.02, 'rad', 0.0, 0.5, 'scan matching searches this far in heading, each way')
     scan_match_step_rad: float = _p(0.005, 'rad', 0.0001, 0.5, 'scan matching tries headings this far apart')
+    scan_match_min_gain: float = _p(0.002, 'score', 0.0, 1.0,
+                                    'a correction must fit the scan this much better than odometry (mean wall likelihood)')
     # The whole map (services.known_map: the window and every paged-out tile) routes to places the
     # window and the graph cannot, and finds what is left before a robot stops; it is derived
     # again when older than this or once the robot has moved recenter_distance_m.

@@ -11,7 +11,7 @@ by how close the scan's endpoints fall to the walls mapped (a correlative matche
 2009), and the best becomes the pose, the correction carried on for the odometry that
 follows (services.pose). Where the scan fits as well without a correction (along a
 corridor with no feature, all poses score alike), odometry is trusted: of the poses that
-fit within TIE_SCORE of the best the one nearest the prediction is taken. It runs only with
+fit within scan_match_min_gain of the best the one nearest the prediction is taken. It runs only with
 ExplorationParams.scan_match (off by default).
 """
 from __future__ import annotations
@@ -28,8 +28,6 @@ from firmware.services.local_map import LocalMap
 # cell, this wide (cells). A hit lands within half a cell of its wall; odometry between two
 # matches moves it far less than a cell.
 FIELD_SIGMA_CELLS = 1.0
-# Scores (mean likelihood over the endpoints) within this of the best count as equally good.
-TIE_SCORE = 0.002
 # A scan is matched only if this many of its endpoints fall near walls already mapped (field
 # above one half at the predicted pose): too few, and there is nothing to match against.
 MIN_ANCHORED_ENDPOINTS = 30
@@ -87,7 +85,7 @@ class ScanMatcher:
         scores = kernels.scan_match_scores(field, row0, col0, res, x_m, y_m, yaw_rad, bx, by,
                                            self._dxy, self._dxy, self._dyaw)
         self.matches += 1
-        good = scores >= scores.max() - TIE_SCORE
+        good = scores >= scores.max() - self.p.scan_match_min_gain
         if good.flat[self._offset2.size // 2]:      # no correction fits as well as any
             return x_m, y_m, yaw_rad
         k, a, b = np.unravel_index(int(np.argmin(np.where(good, self._offset2, np.inf))), scores.shape)
