@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from firmware.agent import CONTACT_HALF_WIDTH_RAD, STALLS_BEFORE_CLOSING_A_GAP, ExplorerAgent
+from firmware.agent import STALLS_BEFORE_CLOSING_A_GAP, ExplorerAgent
 from firmware.params import ExplorationParams
 from firmware.services.local_map import LocalMap
 from firmware.services.recovery import step_time_us
@@ -71,12 +71,6 @@ def test_a_stall_against_something_the_lidar_shows_marks_no_bump_and_follows_clo
         fake.run(agent, fake.t_us / 1e6 + 1.0)
     # Stalled at the same spot again and again: the gap ahead is narrower than the map shows.
     assert agent.bumps >= STALLS_BEFORE_CLOSING_A_GAP and agent.local_map.bumps and not agent.done
-    # It is closed around the post the LiDAR shows touching (75-85 deg left of the heading,
-    # at the origin), not across the corridor straight ahead.
-    bumps = np.array(agent.local_map.bumps)
-    bearings_deg = np.degrees(np.arctan2(bumps[:, 1], bumps[:, 0]))
-    half_width_deg = math.degrees(CONTACT_HALF_WIDTH_RAD) + 1.0
-    assert ((bearings_deg > 75 - half_width_deg) & (bearings_deg < 85 + half_width_deg)).all(), bearings_deg
     fake.run(agent, 3000)
     assert agent.done, "a robot that really cannot move still drops its targets for good and stops"
     # Before it stopped it forgot the gap its bumps closed, once: a drifting pose can wedge
