@@ -25,7 +25,7 @@ from firmware.scheduler import Scheduler, Task, TaskProfiler
 from firmware.schemes import all_dialects, build
 from firmware.schemes.base import NEEDS, PRIORITY_STATUS, Scheme, Services
 from firmware.services.deployment import Deployment
-from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, nearest_ahead
+from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.services.motion import PathFollower, StallDetector
 from firmware.services.planner import FrontiersLeft, Planner
 from firmware.services.pose import SHARED_FRAME, PoseService
@@ -43,9 +43,6 @@ from hal.samples import LidarScan
 # Stalls in a row at one spot, with the LiDAR showing the walls, after which the gap ahead is
 # closed in the map (ExplorerAgent._on_stall).
 STALLS_BEFORE_CLOSING_A_GAP = 3
-# ... the obstacle marked then: this far each side of the bearing of the return the LiDAR
-# shows touching (a point closes the body's width around it; 0.3 rad at 0.35 m is 0.2 m more).
-CONTACT_HALF_WIDTH_RAD = 0.3
 
 
 class ExplorerAgent:
@@ -316,26 +313,20 @@ class ExplorerAgent:
         it already and the path was cut too close past it: follow the next path closely
         instead. (A bump there, 0.7 m wide, closed the only way out of a room of the Intel
         lab: one robot, seed 3, ended at 48 % coverage.) Stalled there
-        STALLS_BEFORE_CLOSING_A_GAP times in a row, it marks the bump all the same, around the
-        return the LiDAR shows touching: the gap is narrower than the map shows. wheels:
-        odometry's own pose now (the track's frame)."""
+        STALLS_BEFORE_CLOSING_A_GAP times in a row, it marks the bump all the same: the gap
+        is narrower than the map shows. wheels: odometry's own pose now (the track's frame)."""
         reach_m = self.p.robot_radius_m + self.p.resolution_m
-        contact_rad = nearest_ahead(self._binned_last_scan(), pose.yaw_rad, reach_m)
-        touching = contact_rad is not None
+        touching = something_within(self._binned_last_scan(), pose.yaw_rad, reach_m)
         again = self._last_stall_xy is not None and \
             math.hypot(pose.x_m - self._last_stall_xy[0], pose.y_m - self._last_stall_xy[1]) < self.p.resolution_m
         self._stalls_here = self._stalls_here + 1 if again else 1
         self._last_stall_xy = (pose.x_m, pose.y_m)
         # Following closely did not get the body past: the gap ahead is narrower than the map
         # shows (the planner lets a path through where the body fits only if the walls lie at
-        # the far side of their cells); close it.
+        # the far side of their cells); close it like a bumper would.
         wedged = self._stalls_here >= STALLS_BEFORE_CLOSING_A_GAP
-        if not touching:
+        if not touching or wedged:
             self.local_map.mark_obstacle_ahead(pose.x_m, pose.y_m, pose.yaw_rad, reach_m)
-        elif wedged:
-            # Where the LiDAR shows the body touching: an arc across the whole heading would
-            # also close the way beside it (at a corner, the way the robot came).
-            self.local_map.mark_obstacle_ahead(pose.x_m, pose.y_m, contact_rad, reach_m, CONTACT_HALF_WIDTH_RAD)
         self.bumps += 1
         self.follower.clear()
         if self.p.stall_back_off_m > 0 and self._room_behind(pose, self.p.stall_back_off_m):

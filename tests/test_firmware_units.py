@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from firmware.services.motion import PathFollower
-from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, nearest_ahead, something_within
+from firmware.services.local_map import BinnedScan, LocalMap, bin_scan, something_within
 from firmware.params import ExplorationParams, TaskRates
 from firmware.scheduler import Scheduler, Task
 from firmware import kernels
@@ -54,18 +54,6 @@ def test_something_within_reach_counts_only_the_half_plane_ahead():
     assert not something_within(scan, math.radians(100), 0.25)   # out of reach
     ranges[135] = 0.0                       # no beam in that bin
     assert not something_within(scan, math.radians(100), 0.35)
-
-
-def test_the_nearest_return_ahead_gives_where_the_body_touches():
-    ranges = np.full(360, 5.0)
-    ranges[135] = 0.3                       # bearing 145 deg
-    ranges[120] = 0.32                      # bearing 130 deg, a little farther
-    ranges[300] = 0.1                       # bearing 310 deg: nearer, but behind a heading of 100 deg
-    scan = BinnedScan(0.0, 0.0, math.radians(10), ranges, 10.0)
-    assert nearest_ahead(scan, math.radians(100), 0.35) == pytest.approx(math.radians(145))
-    assert nearest_ahead(scan, math.radians(100), 0.31) == pytest.approx(math.radians(145))
-    assert nearest_ahead(scan, math.radians(100), 0.29) is None
-    assert nearest_ahead(scan, math.radians(-60), 0.35) == pytest.approx(math.radians(310))
 
 
 def test_following_closely_steers_for_the_next_point_until_the_distance_is_driven():

@@ -119,20 +119,10 @@ def bin_scan(x_m: float, y_m: float, yaw_rad: float, angle_min_rad: float, angle
 def something_within(scan: BinnedScan, yaw_rad: float, reach_m: float) -> bool:
     """Whether a binned scan shows a return within reach_m in the half-plane ahead of the
     heading yaw_rad."""
-    return nearest_ahead(scan, yaw_rad, reach_m) is not None
-
-
-def nearest_ahead(scan: BinnedScan, yaw_rad: float, reach_m: float) -> float | None:
-    """The world bearing of a binned scan's nearest return within reach_m in the half-plane
-    ahead of the heading yaw_rad (the lowest bin of equals), or None if there is none."""
     bins = len(scan.ranges_m)
     bearing = scan.bearing0_rad + np.arange(bins) * (2 * math.pi / bins)
     r = np.asarray(scan.ranges_m)
-    near = (r > 0.0) & (r <= reach_m) & (np.cos(bearing - yaw_rad) > 0.0)
-    if not near.any():
-        return None
-    k = int(np.argmin(np.where(near, r, np.inf)))
-    return float(bearing[k])
+    return bool(((r > 0.0) & (r <= reach_m) & (np.cos(bearing - yaw_rad) > 0.0)).any())
 
 
 @dataclass
@@ -265,16 +255,14 @@ class LocalMap:
             t = tile.shape[0]
             self._fill(*fold, (0, t, 0, t), grid=(tile, t_row0, t_col0))
 
-    def mark_obstacle_ahead(self, x_m: float, y_m: float, yaw_rad: float, distance_m: float,
-                            half_width_rad: float = 0.6) -> None:
-        """Remember an obstacle just ahead of the robot (an arc of 7 points half_width_rad
-        each side of the bearing yaw_rad, distance_m from the centre) that the LiDAR does not
-        show where the body met it. Kept apart from the log-odds, so later scans that see free
+    def mark_obstacle_ahead(self, x_m: float, y_m: float, yaw_rad: float, distance_m: float) -> None:
+        """Remember an obstacle just ahead of the robot (a short arc across its heading) that
+        the LiDAR does not show. Kept apart from the log-odds, so later scans that see free
         space there cannot erase it and send the robot into the same spot again. Points of
         the arc the body has covered on its recent path (body_covers) are left out: the body
         was there, so nothing is; an arc drawn across the way the robot came, after it
         turned at a corner, would shut it in."""
-        offsets = np.linspace(-half_width_rad, half_width_rad, 7)
+        offsets = np.linspace(-0.6, 0.6, 7)
         arc = np.column_stack((x_m + distance_m * np.cos(yaw_rad + offsets), y_m + distance_m * np.sin(yaw_rad + offsets)))
         covered = self.body_covers(arc)
         self.bumps.extend((float(bx), float(by)) for (bx, by), c in zip(arc, covered) if not c)
