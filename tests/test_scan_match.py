@@ -68,6 +68,19 @@ def test_a_scan_taken_off_the_odometry_pose_is_matched_back_onto_the_map(offset)
     assert abs(found[2] - truth[2]) <= 0.006, found
 
 
+def test_a_correction_must_gain_at_least_scan_match_min_gain_over_odometry():
+    """The same offset pose as above: a correction gains a clear score there, so a threshold
+    below the gain corrects and one above it keeps odometry's pose."""
+    truth, predicted = (0.3, -0.2, 0.4), (0.36, -0.25, 0.4)
+    local_map = _mapped(ROOM, [(0.0, 0.0, 0.0), (0.5, 0.3, 1.0), (-0.5, -0.4, 2.0)])
+    scan = _scan(ROOM, *truth)
+    corrected = ScanMatcher(P).match(local_map, *predicted, ANGLE_MIN, INC, scan, RANGE_MAX_M)
+    kept = ScanMatcher(dataclasses.replace(P, scan_match_min_gain=1.0)).match(
+        local_map, *predicted, ANGLE_MIN, INC, scan, RANGE_MAX_M)
+    assert corrected is not None and math.hypot(corrected[0] - truth[0], corrected[1] - truth[1]) <= 0.03
+    assert kept == predicted
+
+
 def test_along_a_featureless_corridor_odometry_is_kept_and_across_it_corrected():
     local_map = _mapped(CORRIDOR, [(x, 0.0, 0.0) for x in (-6.0, -3.0, 0.0, 3.0, 6.0)])
     truth = (0.0, 0.1, 0.0)
