@@ -187,9 +187,9 @@ def kernel_path_exists(traversable, a, b) -> bool:
 
 def test_an_obstacle_felt_where_the_body_just_was_is_not_marked():
     """A robot came west along y = 0 to x = 2 m, turned round to the south-east and stalled
-    there: the arc marked ahead reaches back over the way it came. Only the arc's points farther from
-    that way than the body's radius less half a cell are kept, so the way back stays open;
-    the same stall with no path behind it marks the whole arc."""
+    there: the arc marked ahead reaches back over the way it came. Only the arc's points
+    farther from that way than the body's radius less half a cell are kept, so the way back
+    stays open; the same stall with no path behind it marks the whole arc."""
     p = ExplorationParams()
     local_map = LocalMap(p, 0.0, 0.0)
     for k in range(41):

@@ -11,8 +11,8 @@ by how close the scan's endpoints fall to the walls mapped (a correlative matche
 2009), and the best becomes the pose, the correction carried on for the odometry that
 follows (services.pose). Where the scan fits as well without a correction (along a
 corridor with no feature, all poses score alike), odometry is trusted: of the poses that
-fit within scan_match_min_gain of the best the one nearest the prediction is taken. It runs only with
-ExplorationParams.scan_match (off by default).
+fit within scan_match_min_gain of the best the one nearest the prediction is taken. It
+runs only with ExplorationParams.scan_match (off by default).
 """
 from __future__ import annotations
 
