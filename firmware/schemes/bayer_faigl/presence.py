@@ -9,6 +9,7 @@ from firmware import kernels
 from firmware.schemes.base import Services
 from firmware.services.grid_paths import lines_of_sight
 from firmware.services.targets import Target
+from firmware.services.team_view import unseen_after_team_view_bit
 from firmware.services.waypoints import Waypoint
 
 
@@ -186,24 +187,7 @@ class PresenceRule:
         dropped = [w for w, d in zip(items, out_dropped) if d]
         if is_reported.any():
             reported = [w for w, r in zip(items, is_reported) if r]
-            wi = w_ij[is_reported, 0]
-            wj = w_ij[is_reported, 1]
-            reach_cells = p.d_cam_m / p.resolution_m
-            # observable_unknown below reads only the unknown cells its rays from these
-            # waypoints reach: what the teammates saw elsewhere does not change the result.
-            counted = np.zeros(sight.shape, bool)
-            kernels.mark_visible(sight, wi, wj, p.info_rays, reach_cells, sight == kernels.UNKNOWN, counted)
-            # A place more than 2 d_cam from every such waypoint sees nothing the waypoint
-            # would (1 m spare for cell rounding), so it is left out: the same result, much
-            # less ray casting.
-            d2 = ((xy[others, None, :] - wxy[None, is_reported, :]) ** 2).sum(axis=2).min(axis=1)
-            places = others[d2 <= (2.0 * p.d_cam_m + 1.0) ** 2]
-            ij, inside = self.s.local_map.cells_of(xy[places])
-            seen = np.zeros(sight.shape, bool)
-            kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], p.team_view_rays, reach_cells, counted, seen)
-            team_sight = sight.copy()
-            team_sight[seen] = kernels.SEEN_BY_TEAM
-            unseen_bit = kernels.observable_unknown(team_sight, wi, wj, p.info_rays, reach_cells) * p.entropy_per_cell_bit
+            unseen_bit = unseen_after_team_view_bit(self.s.local_map, sight, wxy[is_reported], xy[others], p)
             for w, left in zip(reported, unseen_bit):
                 (keep if left >= p.presence_keep_bit else dropped).append(w)
         return keep, dropped

@@ -1,0 +1,46 @@
+"""What teammates' places saw: the information a waypoint still promises once everything a
+LiDAR at the teammates' places would have seen counts as seen.
+
+Schemes that share places but no maps (Bayer & Faigl's presence rule, Pereira's end-game
+take-back) ask it before leaving a waypoint to the team or taking one back: a teammate that
+stood near a waypoint but behind a wall, or whose view reached only part of what lies beyond
+it, leaves the rest unseen.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from firmware import kernels
+from firmware.params import ExplorationParams
+from firmware.services.local_map import LocalMap
+
+
+def unseen_after_team_view_bit(local_map: LocalMap, sight: np.ndarray, waypoints_xy: np.ndarray,
+                               places_xy: np.ndarray, params: ExplorationParams) -> np.ndarray:
+    """Per waypoint (rows of x, y in metres, all inside the window): the unknown it would
+    show (observable_unknown over info_rays within d_cam_m), in bits, with the cells that
+    team_view_rays cast from the teammates' places (rows of x, y) reach marked as seen. Rays
+    stop at walls the window shows and pass through its unknown cells."""
+    p = params
+    wxy = np.asarray(waypoints_xy, np.float64).reshape(-1, 2)
+    if not len(wxy):
+        return np.zeros(0)
+    w_ij, _inside = local_map.cells_of(wxy)
+    wi, wj = w_ij[:, 0], w_ij[:, 1]
+    reach_cells = p.d_cam_m / p.resolution_m
+    # observable_unknown below reads only the unknown cells its rays from these waypoints
+    # reach: what the teammates saw elsewhere does not change the result.
+    counted = np.zeros(sight.shape, bool)
+    kernels.mark_visible(sight, wi, wj, p.info_rays, reach_cells, sight == kernels.UNKNOWN, counted)
+    # A place more than 2 d_cam from every waypoint sees nothing the waypoint would (1 m
+    # spare for cell rounding), so it is left out: the same result, much less ray casting.
+    pxy = np.asarray(places_xy, np.float64).reshape(-1, 2)
+    if len(pxy):
+        d2 = ((pxy[:, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
+        pxy = pxy[d2 <= (2.0 * p.d_cam_m + 1.0) ** 2]
+    ij, inside = local_map.cells_of(pxy)
+    seen = np.zeros(sight.shape, bool)
+    kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], p.team_view_rays, reach_cells, counted, seen)
+    team_sight = sight.copy()
+    team_sight[seen] = kernels.SEEN_BY_TEAM
+    return kernels.observable_unknown(team_sight, wi, wj, p.info_rays, reach_cells) * p.entropy_per_cell_bit
