@@ -15,7 +15,8 @@ as gate records of origin 254 from the start and finds no gates of its own.
 
 Its planning stage places waypoints in regions by its label grid (labels.py), then:
 waypoints in regions a teammate's claim calls explored are left to the
-team (A5, A6; with no teammate exploring, the rich ones are taken back); the others are
+team (A5, A6; a robot with nothing else left, or no teammate exploring, takes back those
+still worth it); the others are
 ranked by category (f^fu, f^c, f^fs, f^o) and by Algorithm 1's conflict rule with eq. (3)
 against the `intent`s teammates broadcast (choice.py); the shared choice takes the
 cheapest of the best rank. Records reach robots out of range through others: a `summary`
@@ -45,6 +46,7 @@ from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_M
 from firmware.schemes.pereira.regions import RegionGraph
 from firmware.schemes.pereira.store import Store
 from firmware.services.pose import TravelMilestones
+from firmware.services.team_view import unseen_after_team_view_bit
 from hal.samples import OdometrySample
 
 IDLE, EXPLORING, DONE = 0, 1, 2            # records.INTENT_STATES
@@ -329,8 +331,9 @@ class Pereira(Scheme):
     # --- the planning stage -----------------------------------------------------------
     def filter_waypoints(self, view: PlanningView) -> None:
         """Waypoints in regions a teammate's claim calls explored are left to the team (A5,
-        A6), unless no teammate explores any more and they are rich (the spec's end-game
-        safety net: a wrong claim must not leave a hole)."""
+        A6), unless this robot has nothing else left, or no teammate explores any more, and
+        they are worth taking back (_worth_taking_back; the spec's end-game safety net: a
+        claim made for the region as its claimant knew it must not leave a hole)."""
         items = self.s.waypoints.items
         if not items:
             return
@@ -339,24 +342,49 @@ class Pereira(Scheme):
             return
         graph = self.store.graph()
         self._label_grid(graph, view.sight, view.now_us)
-        alone = not self.s.roster.any_active(view.now_us)
-        keep = []
+        keep, left = [], []
         for w, r in zip(items, self._labels(graph, [(w.x_m, w.y_m) for w in items])):
-            if r is None or r not in others:
-                keep.append(w)
-            elif alone and w.e_bit >= self.s.params.pereira_revive_min_bit and not self._teammate_stood_near(graph, w):
-                keep.append(w)
+            (keep if r is None or r not in others else left).append((w, r))
+        alone = not self.s.roster.any_active(view.now_us)
+        back = self._worth_taking_back(graph, view.sight, [w for w, _r in left], alone) \
+            if left and (alone or not keep) else [False] * len(left)
+        for (w, r), taken in zip(left, back):
+            if taken:
+                keep.append((w, r))
                 self.counts["waypoints_taken_back"] += 1
             else:
                 self.counts["waypoints_left_to_team"] += 1
                 self._left_labels.add(r)
-        items[:] = keep
+        kept = {id(w) for w, _r in keep}
+        items[:] = [w for w in items if id(w) in kept]
+
+    def _worth_taking_back(self, graph: RegionGraph, sight: np.ndarray, items: list, alone: bool) -> list[bool]:
+        """Which of these waypoints (in regions teammates claimed) to take back: those
+        promising pereira_revive_min_bit that no teammate left a place within revive_clear_m
+        of, and, in the window, that still promise pereira_revive_left_bit once what LiDARs
+        at the teammates' places would have seen counts as seen (services.team_view). The
+        robots share no maps, so this robot's map shows everything teammates explored as
+        unknown: taking back every rich waypoint, the last robot on maze_a drove its
+        teammates' regions again (1144 m against their 100-490 m), and with the place test
+        alone it drove 570 m after the team had covered everything. Beyond the window there
+        is nothing to cast against, and only a robot with no teammate exploring takes a
+        waypoint back there."""
+        p = self.s.params
+        rich = [w.e_bit >= p.pereira_revive_min_bit and not self._teammate_stood_near(graph, w) for w in items]
+        xy = np.array([(w.x_m, w.y_m) for w in items], np.float64).reshape(-1, 2)
+        _ij, inside = self.s.local_map.cells_of(xy)
+        out = [r and alone and not i for r, i in zip(rich, inside.tolist())]
+        ask = np.nonzero(np.array(rich) & inside)[0]
+        if len(ask):
+            theirs = graph.places[graph.places[:, 2] != self.s.robot_id, :2] / 10.0
+            left_bit = unseen_after_team_view_bit(self.s.local_map, sight, xy[ask], theirs, p)
+            for k, bits in zip(ask.tolist(), left_bit.tolist()):
+                out[k] = bits >= p.pereira_revive_left_bit
+        return out
 
     def _teammate_stood_near(self, graph: RegionGraph, w) -> bool:
         """Did a teammate leave a place within revive_clear_m of the waypoint? Then it saw
-        what the waypoint would show (this robot shares no map, so its own map holds
-        everything teammates explored as unknown: taking back every rich waypoint, a last
-        robot on maze_a drove its teammates' regions again, 1144 m against their 100-490 m)."""
+        what the waypoint would show."""
         near = graph.places_within(w.x_m * 10, w.y_m * 10, self.s.params.revive_clear_m * 10)
         return bool((graph.places[near, 2] != self.s.robot_id).any())
 

@@ -1,0 +1,71 @@
+"""Pereira's end-game net (Pereira.filter_waypoints): waypoints in a region a teammate
+claimed explored are left to it, unless this robot has nothing else left, or no teammate
+explores, and what they promise is still unseen from every teammate's place.
+
+The map: a corridor y in [19, 21] m from x = 5 to 35 m, walls along both sides, unknown
+beyond x = 35 m (the open end). Teammate 1 drove the corridor's west part and claims its
+region explored; this robot (0) has a rich waypoint at the open end."""
+import math
+
+import numpy as np
+
+from firmware.params import ExplorationParams
+from firmware.schemes.base import PlanningView
+from firmware.schemes.pereira.records import Claim, Place, values_of
+from firmware.services.local_map import LocalMap
+from firmware.services.waypoints import Waypoint
+from tests.doubles import PlannerRig
+from tests.doubles import paint_box as paint
+
+P = ExplorationParams()
+ME, OTHER = 0, 1
+NOW_US = 1_000_000
+AT_THE_END = (34.0, 20.0)                 # a waypoint at the corridor's open end
+FAR_AWAY = (20.0, 35.0)                   # a waypoint no place labels: in no region
+
+
+def _rig(teammate_places_x_m: list[float], teammate_active: bool) -> PlannerRig:
+    local_map = LocalMap(P, 20.0, 20.0)
+    local_map.logodds[:] = 0.0
+    paint(local_map, 5.0, 35.0, 19.0, 21.0, P.logodds_min)      # corridor floor, seen free
+    paint(local_map, 5.0, 35.0, 18.8, 18.9, P.logodds_max)      # south wall
+    paint(local_map, 5.0, 35.0, 21.1, 21.2, P.logodds_max)      # north wall
+    rig = PlannerRig(local_map, "pereira", ME, P)
+    for k, x in enumerate(teammate_places_x_m):
+        rig.scheme.on_record("place", values_of(Place(OTHER, k + 1, round(x * 10), 200, 8, 1 if k else 0)), NOW_US)
+    graph = rig.scheme.store.graph()
+    (region,) = graph.regions
+    claim = Claim(OTHER, len(teammate_places_x_m) + 1, region.anchor_x_dm, region.anchor_y_dm, region.signature, 1, 0)
+    rig.scheme.on_record("claim", values_of(claim), NOW_US)
+    if teammate_active:
+        rig.roster.heard_at(OTHER, 10.0, 20.0, NOW_US)
+    return rig
+
+
+def _filter(rig: PlannerRig, *waypoints: tuple[float, float]) -> list[tuple[float, float]]:
+    rig.waypoints.items = [Waypoint(x, y, 2.0 * P.pereira_revive_min_bit) for x, y in waypoints]
+    view = PlanningView(20.0, 20.0, NOW_US, rig.local_map.layers().sight, None, frozenset(),
+                        lambda cands: np.full(len(cands), math.inf))
+    rig.scheme.filter_waypoints(view)
+    return [(w.x_m, w.y_m) for w in rig.waypoints.items]
+
+
+def test_a_robot_with_nothing_else_takes_back_what_no_teammate_could_have_seen():
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True)
+    assert _filter(rig, AT_THE_END) == [AT_THE_END]
+    assert rig.stat("waypoints_taken_back") == 1
+
+
+def test_while_it_has_its_own_waypoints_it_leaves_the_claimed_region_to_the_team():
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True)
+    assert _filter(rig, AT_THE_END, FAR_AWAY) == [FAR_AWAY]
+    assert rig.stat("waypoints_left_to_team") == 1 and rig.stat("waypoints_taken_back") == 0
+
+
+def test_what_a_teammates_place_had_in_view_stays_left_to_it():
+    """A place 4 m on, out in what this robot has not seen (beyond revive_clear_m of the
+    waypoint): its LiDAR saw nearly all the waypoint promises."""
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], teammate_active=True)
+    assert _filter(rig, AT_THE_END) == []
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], teammate_active=False)
+    assert _filter(rig, AT_THE_END) == []
