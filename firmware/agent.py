@@ -364,7 +364,7 @@ class ExplorerAgent:
             self.follower.clear()
             self.hal.drive.command(0.0, 0.0)
             self.done = True
-            self.scheme.on_finished()
+            self.scheme.on_finished(self.planner.frontiers.middles_xy(self.p.resolution_m))
             # Nothing left that this robot can get to; say so if it gave up on frontiers its
             # body could reach (frontiers behind gaps narrower than the body are no way on).
             self.status = "complete_with_unreachable_frontiers" if self.planner.frontiers.given_up else "complete"

@@ -69,3 +69,23 @@ def test_what_a_teammates_place_had_in_view_stays_left_to_it():
     assert _filter(rig, AT_THE_END) == []
     rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], teammate_active=False)
     assert _filter(rig, AT_THE_END) == []
+
+
+def _claims_on_stopping(places_x_m: list[float], frontiers_left_xy: list[tuple[float, float]]) -> int:
+    """Teammate 1 drove the corridor and claimed nothing; this robot stops."""
+    local_map = LocalMap(P, 20.0, 20.0)
+    local_map.logodds[:] = 0.0
+    paint(local_map, 5.0, 35.0, 19.0, 21.0, P.logodds_min)
+    rig = PlannerRig(local_map, "pereira", ME, P)
+    for k, x in enumerate(places_x_m):
+        rig.scheme.on_record("place", values_of(Place(OTHER, k + 1, round(x * 10), 200, 8, 1 if k else 0)), NOW_US)
+    rig.scheme.on_finished(np.array(frontiers_left_xy, np.float64).reshape(-1, 2))
+    return rig.stat("claims_on_stopping")
+
+
+def test_a_robot_that_stops_claims_every_region_it_has_mapped_whole():
+    assert _claims_on_stopping([6.0, 7.0, 8.0, 9.0, 10.0], []) == 1
+    # A place in what this robot never mapped: the region may go on where it did not look.
+    assert _claims_on_stopping([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], []) == 0
+    # A frontier it leaves there (given up, or behind a gap): not explored for it.
+    assert _claims_on_stopping([6.0, 7.0, 8.0, 9.0, 10.0], [(14.0, 20.0)]) == 0

@@ -189,8 +189,10 @@ class Scheme(ABC):
         wrong, where this robot stopped), so it plans again and goes on if there is."""
         return False
 
-    def on_finished(self) -> None:
-        """The robot found nothing more to explore and stopped (wake_up may start it again)."""
+    def on_finished(self, frontiers_left_xy: np.ndarray) -> None:
+        """The robot found nothing more to explore and stopped (wake_up may start it again).
+        frontiers_left_xy: the middles (n, 2, metres) of the frontiers it leaves in all it
+        has mapped (given up, or behind gaps narrower than its body); none elsewhere."""
 
     def has_news(self) -> bool:
         """Something this robot still has to tell its team (records of its own waiting to

@@ -476,6 +476,11 @@ class FrontiersLeft:
     def area_m2(frontiers: tuple[Frontier, ...]) -> float:
         return float(sum(f.area_m2 for f in frontiers))
 
+    def middles_xy(self, resolution_m: float) -> np.ndarray:
+        """Every frontier's middle cell's centre (n, 2, metres), given up first."""
+        cells = np.array([f.cell for f in self.given_up + self.behind_gaps], np.float64).reshape(-1, 2)
+        return (cells[:, ::-1] + 0.5) * resolution_m
+
 
 def settle_choice_costs(candidates: list[Candidate], paths: GridPaths, target: Target | None,
                         resolution_m: float) -> None:

@@ -183,7 +183,7 @@ class Meier(Scheme):
         self._finished = False
         return True
 
-    def on_finished(self) -> None:
+    def on_finished(self, frontiers_left_xy: np.ndarray) -> None:
         self._finished = True
 
     def has_news(self) -> bool:

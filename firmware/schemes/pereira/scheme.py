@@ -140,7 +140,7 @@ class Pereira(Scheme):
         self.counts = dict.fromkeys((
             "places_sent", "gates_sent", "claims_sent", "claims_retracted", "intents_sent", "summaries_sent",
             "records_pushed", "records_heard_new", "waypoints_left_to_team", "waypoints_taken_back",
-            "choices_yielded", "records_dropped_by_link"), 0)
+            "choices_yielded", "records_dropped_by_link", "claims_on_stopping"), 0)
 
     def tasks(self) -> list[Task]:
         p = self.s.params
@@ -284,8 +284,9 @@ class Pereira(Scheme):
         self._retracted, self._woken_us, self._finished = False, now_us, False
         return True
 
-    def on_finished(self) -> None:
+    def on_finished(self, frontiers_left_xy: np.ndarray) -> None:
         self._finished = True
+        self._claim_all_it_mapped(frontiers_left_xy)
         # The roster learns it from the heartbeat too; the intent stops teammates yielding to it now.
         self._send_intent(DONE, OTHER, *self._position(), 0.0, force=True, now_us=self._said_intent_us)
 
@@ -483,6 +484,33 @@ class Pereira(Scheme):
                 self._claim(ax, ay, sig, 0)
                 self._claimed[rid] = (ax, ay, sig, 0)
                 self.counts["claims_retracted"] += 1
+
+    def _claim_all_it_mapped(self, frontiers_left_xy: np.ndarray) -> None:
+        """A robot that stops has no frontier left in all it has mapped but those it names:
+        every region whose places all lie in what it mapped, with none of those frontiers
+        and no teammate's claim on it, is explored for it, wherever its window is now.
+        A2's test while exploring sees only the window, so a region longer than the window
+        was never claimed, and teammates that shared no map with this robot drove it again
+        (maze_a: the last robot drove 570 m after the team had seen everything)."""
+        graph = self.store.graph()
+        state, row0, col0 = self.s.local_map.whole_state()
+        res = self.s.params.resolution_m
+        left = set(self._labels(graph, [(float(x), float(y)) for x, y in frontiers_left_xy]))
+        others = self._explored_by_others()
+        for k, reg in enumerate(graph.regions):
+            if reg.virtual or k in left or k in others:
+                continue
+            xy = graph.places[list(reg.places), :2] / 10.0
+            i = np.floor(xy[:, 1] / res).astype(np.int64) - row0
+            j = np.floor(xy[:, 0] / res).astype(np.int64) - col0
+            if not ((i >= 0) & (i < state.shape[0]) & (j >= 0) & (j < state.shape[1])).all() \
+                    or (state[i, j] == kernels.UNKNOWN).any():
+                continue
+            said = (reg.anchor_x_dm, reg.anchor_y_dm, reg.signature, 1)
+            if self._claimed.get(reg.id) != said:
+                self._claim(*said)
+                self._claimed[reg.id] = said
+                self.counts["claims_on_stopping"] += 1
 
     def _claim(self, ax: int, ay: int, sig: int, explored: int) -> None:
         self._publish("claim", Claim(self.s.robot_id, self._next_oseq(), ax, ay, sig, explored, 0), PRIORITY_STATUS)

@@ -303,7 +303,7 @@ class Wiserx(Scheme):
     def after_plan(self, pose: OdometrySample, now_us: int) -> None:
         self._now_us = now_us
 
-    def on_finished(self) -> None:
+    def on_finished(self, frontiers_left_xy: np.ndarray) -> None:
         if self._first_us["finished"] < 0:
             self._first_us["finished"] = self._now_us
 
