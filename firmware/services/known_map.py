@@ -25,6 +25,7 @@ import scipy.ndimage as ndimage
 from firmware import kernels
 from firmware.params import ExplorationParams
 from firmware.services.body_fit import PlanningFits
+from firmware.services.dilation import dilate_disc, dilate_square
 from firmware.services.grid_paths import extract_path, lines_of_sight, nearest_traversable, traversable_near
 from firmware.services.local_map import LocalMap, close_wall_gaps
 
@@ -70,7 +71,7 @@ def find_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploration
     name the frontiers' cells."""
     free = sight == kernels.FREE
     unknown = sight == kernels.UNKNOWN
-    frontier = free & ndimage.binary_dilation(unknown, structure=np.ones((3, 3), bool))
+    frontier = free & dilate_square(unknown, 1)
     labels, n = ndimage.label(frontier, structure=np.ones((3, 3), bool))
     if n == 0:
         return Frontiers()
@@ -86,11 +87,10 @@ def find_frontiers(sight: np.ndarray, reachable: np.ndarray, params: Exploration
     hidden_bit = np.minimum(unseen_cells, behind) * params.entropy_per_cell_bit
     res = params.resolution_m
     reach, unreach = [], []
-    yy, xx = np.mgrid[-REACH_CELLS:REACH_CELLS + 1, -REACH_CELLS:REACH_CELLS + 1]
-    near_reach = ndimage.binary_dilation(reachable, structure=yy * yy + xx * xx <= REACH_CELLS * REACH_CELLS)
+    near_reach = dilate_disc(reachable, REACH_CELLS)
     touched = np.bincount(labels.ravel(), weights=near_reach.ravel(), minlength=n + 1) > 0
     # The cells a reachable cell lies within REACH_CELLS of along both axes (_stand_near's square).
-    near_square = ndimage.binary_dilation(reachable, structure=np.ones((2 * REACH_CELLS + 1,) * 2, bool))
+    near_square = dilate_square(reachable, REACH_CELLS)
     for k, (mi, mj), bits in zip(groups.tolist(), middles.tolist(), hidden_bit.tolist()):
         if bits < params.report_unreachable_bit:
             continue
