@@ -51,13 +51,17 @@ Not yet, or not as the spec says:
   (RegionGraph.label), which can reach through a wall no gate marks;
 - goal persistence (A18) is the shared choice's (keep the target unless another of no worse
   rank costs under 0.8 of it), not 1.25 x U;
-- the end-game safety net takes back rich waypoints (pereira_revive_min_bit) in claimed
-  regions once no teammate explores, unless a teammate's place lies within revive_clear_m
-  of the waypoint; the spec's subtraction of the claimants' places' cast view is not done;
-  a robot that has already stopped is woken only by a retraction, not by that net;
+- the end-game safety net (the spec's, once every teammate is done) also serves a robot
+  with nothing else left while teammates explore: it takes back rich waypoints
+  (pereira_revive_min_bit) in claimed regions that no teammate left a place within
+  revive_clear_m of and that keep pereira_revive_left_bit once the view from every
+  teammate's place (not only the claimants') counts as seen; beyond the window only once
+  every teammate is done. A robot that has already stopped is woken only by a retraction;
+- a robot that stops claims every region it has mapped whole (its places all known, none of
+  the frontiers it leaves in it, no teammate's claim on it), beyond A2's window;
 - robots share no maps (as in the paper): a robot whose every frontier lies in regions
-  teammates claimed stops, so one robot can end up exploring much longer than the rest
-  (maze_a: see the README's "Pereira et al." section for figures);
+  teammates claimed, with nothing worth taking back, stops, so one robot can still end up
+  exploring much longer than the rest (maze_a: see the README's "Pereira et al." section);
 - a done robot sends one done intent, not one every 30 s (the heartbeat says done);
 - pushes are cancelled when the record is overheard only while they wait in the scheme's
   outbox (at most PUSH_BACKLOG on the link), there is no LinkLayer.cancel;

@@ -366,10 +366,11 @@ class Pereira(Scheme):
         at the teammates' places would have seen counts as seen (services.team_view). The
         robots share no maps, so this robot's map shows everything teammates explored as
         unknown: taking back every rich waypoint, the last robot on maze_a drove its
-        teammates' regions again (1144 m against their 100-490 m), and with the place test
-        alone it drove 570 m after the team had covered everything. Beyond the window there
-        is nothing to cast against, and only a robot with no teammate exploring takes a
-        waypoint back there."""
+        teammates' regions again (1144 m against their 100-490 m); with the place test alone
+        (commit c368dee, seed 0 over eu868-g3) the team had seen all of maze_a at 840 s and
+        the last robot drove on, taking waypoints back, until 1548 s. Beyond the window
+        there is nothing to cast against, and only a robot with no teammate exploring takes
+        a waypoint back there."""
         p = self.s.params
         rich = [w.e_bit >= p.pereira_revive_min_bit and not self._teammate_stood_near(graph, w) for w in items]
         xy = np.array([(w.x_m, w.y_m) for w in items], np.float64).reshape(-1, 2)
@@ -488,10 +489,10 @@ class Pereira(Scheme):
     def _claim_all_it_mapped(self, frontiers_left_xy: np.ndarray) -> None:
         """A robot that stops has no frontier left in all it has mapped but those it names:
         every region whose places all lie in what it mapped, with none of those frontiers
-        and no teammate's claim on it, is explored for it, wherever its window is now.
-        A2's test while exploring sees only the window, so a region longer than the window
-        was never claimed, and teammates that shared no map with this robot drove it again
-        (maze_a: the last robot drove 570 m after the team had seen everything)."""
+        and no teammate's claim on it, is explored for it, wherever its window is now. A2's
+        test while exploring looks only at the window and at the waypoints the robot holds;
+        a region it explored and left before the test passed would otherwise stay open to
+        teammates, who share no map with it and would explore it again."""
         graph = self.store.graph()
         state, row0, col0 = self.s.local_map.whole_state()
         res = self.s.params.resolution_m
