@@ -38,6 +38,7 @@ grid (labels.py, 5.2 d) does not reach. Not here yet: routing over the graph.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 import struct
 from collections.abc import Iterable
@@ -430,10 +431,9 @@ def _cuts(pl: np.ndarray, edges: np.ndarray, seg: np.ndarray) -> np.ndarray:
         tree = cKDTree(mids)
         centres = np.stack([(seg[:, 0] + seg[:, 2]) / 2, (seg[:, 1] + seg[:, 3]) / 2], axis=1)
         hits = tree.query_ball_point(centres, gate_half + float(half_len[short].max()) + 2.0)
-        for g, hs in enumerate(hits):
-            if hs:
-                pe.append(short[np.array(hs, np.int64)])
-                pg.append(np.full(len(hs), g, np.int64))
+        counts = np.fromiter((len(hs) for hs in hits), np.int64, len(hits))
+        pe.append(short[np.fromiter(itertools.chain.from_iterable(hits), np.int64, int(counts.sum()))])
+        pg.append(np.repeat(np.arange(len(hits), dtype=np.int64), counts))
     for e in np.flatnonzero(long_edge):
         pe.append(np.full(len(seg), e, np.int64))
         pg.append(np.arange(len(seg), dtype=np.int64))
@@ -491,12 +491,13 @@ def fold(places: Iterable[Place | tuple[int, ...]], gates: Iterable[Gate | tuple
         sig_gates[rb].add(g)
         if ra != rb:
             adjacency.add((min(ra, rb), max(ra, rb), g))
-    keys = [(int(a[0]), int(a[1]), int(a[2])) for a in acc]
+    keys = [tuple(a) for a in acc[:, :3].tolist()]
+    place_keys = [tuple(k) for k in pl[:, :4].tolist()]
     regions = []
     for r in range(n_real):
         a = members[r][0]
         gk = [keys[g] for g in sig_gates[r]]
-        pk = [tuple(int(v) for v in pl[i, :4]) for i in members[r]]
+        pk = [place_keys[i] for i in members[r]]
         regions.append(Region((REAL, int(pl[a, 0]), int(pl[a, 1]), int(pl[a, 2]), int(pl[a, 3])),
                               int(pl[a, 0]), int(pl[a, 1]), region_signature(gk, pk), False,
                               tuple(members[r]), signature_of(gk)))
