@@ -63,10 +63,10 @@ from scipy.spatial import cKDTree
 from firmware import kernels
 from firmware.schemes.pereira.params import PARAMS, PereiraParams
 from firmware.schemes.pereira.records import DIR_CODES, dir_code_of, dm, half_2cm_of
+from firmware.services.dilation import dilate_square
 from firmware.services.grid_paths import lines_of_sight
 from firmware.services.local_map import close_wall_gaps
 
-_EIGHT = np.ones((3, 3), bool)
 _SIGHT_BATCH = 16      # sight tests per candidate and round, nearest first
 
 
@@ -160,7 +160,7 @@ def detect_gates(state: np.ndarray, row0: int, col0: int, res_m: float,
     tie = p.c_tie_m / res_m
 
     # Narrow enough, and observed around.
-    frontier = (st == kernels.UNKNOWN) & ndimage.binary_dilation(free, _EIGHT)
+    frontier = (st == kernels.UNKNOWN) & dilate_square(free, 1)
     d_front = ndimage.distance_transform_edt(~frontier)[gi, gj] if frontier.any() else np.full(len(gi), np.inf)
     idx = np.flatnonzero((2 * gc * res_m <= p.w_max_m + 1e-9) & (d_front >= gc + p.observed_margin_m / res_m))
 
