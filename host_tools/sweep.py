@@ -305,7 +305,23 @@ COMPARISONS = (
     ("meier", "meier-full", "<= 1.10", "polygon maps vs dense maps"),
     ("meier", "independent", "<= 0.70", "Meier et al. vs no communication"),
     ("meier", "minpos", "<= 1.10", "Meier et al. vs MinPos"),
+    ("pereira", "independent", "<= 0.60", "Pereira et al. vs no communication"),
+    ("pereira", "minpos", "<= 1.10", "Pereira et al. vs MinPos"),
+    ("pereira", "pereira-oracle", "<= 1.15", "automatic regions vs the ground truth's"),
 )
+# Where a bound is looser on some maps (issue 23: Pereira et al. within 1.25 x MinPos on the
+# Intel lab and the cave, 1.10 on the mazes): (strategy, reference) -> (map label part, bound).
+COMPARISON_BOUNDS_BY_MAP = {
+    ("pereira", "minpos"): (("intel", "<= 1.25"), ("cave", "<= 1.25")),
+}
+
+
+def comparison_bound(strategy: str, reference: str, map_label: str, bound: str) -> str:
+    """The bound of a comparison on this map (COMPARISON_BOUNDS_BY_MAP, else bound)."""
+    for part, looser in COMPARISON_BOUNDS_BY_MAP.get((strategy, reference), ()):
+        if part in map_label:
+            return looser
+    return bound
 
 
 # Issue 4's bar for every single trial: the team covers this share of the reachable area and
@@ -421,6 +437,7 @@ def tables(spec: SweepSpec, results: list[dict]) -> dict:
     for m, row in zip(spec.maps, table3):
         for a, b, bound, what in COMPARISONS:
             if a in row and b in row and row[a]["p_max_m"] and row[b]["p_max_m"]:
+                bound = comparison_bound(a, b, row["map"], bound)
                 ratio = row[a]["p_max_m"] / row[b]["p_max_m"]
                 lo, hi = ratio_interval((max(t["path_length_m"]) for t in by[(m, a)]),
                                         (max(t["path_length_m"]) for t in by[(m, b)]))
