@@ -228,9 +228,8 @@ class ExplorationParams:
     pereira_revive_min_bit: float = _p(4000.0, 'bit', 0.0, 1e9,
                                        "waypoints this rich in regions others claimed are taken back by a robot "
                                        "with nothing else left, or with no teammate exploring")
-    pereira_revive_frontier_m: float = _p(0.5, 'm', 0.0, 1000.0,
-                                          "... if this much frontier in their view is out of view of every "
-                                          "teammate's place")
+    pereira_revive_left_bit: float = _p(900.0, 'bit', 0.0, 1e9,
+                                        "... if this much is left unseen by a LiDAR at every teammate's place")
     # Within a category the spec's A9 orders by U = e_bit / (cost_m + pereira_cost_offset_m):
     # the paper weighs "size of frontier and cost" with no formula; the offset keeps a waypoint
     # under the robot from outweighing every other. pereira_by_cost=true orders by cost alone,

@@ -89,20 +89,3 @@ def test_a_robot_that_stops_claims_every_region_it_has_mapped_whole():
     assert _claims_on_stopping([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], []) == 0
     # A frontier it leaves there (given up, or behind a gap): not explored for it.
     assert _claims_on_stopping([6.0, 7.0, 8.0, 9.0, 10.0], [(14.0, 20.0)]) == 0
-
-
-def test_the_far_rim_of_a_waypoints_view_is_no_reason_to_take_it_back():
-    """An open floor this robot saw to the edge of its LiDAR's range, no wall drawn: a
-    teammate that stood 4 m from the waypoint had the whole edge in view, though the
-    unknown 6 to 10 m beyond it was out of every teammate's reach."""
-    local_map = LocalMap(P, 20.0, 20.0)
-    local_map.logodds[:] = 0.0
-    paint(local_map, 5.0, 15.0, 15.0, 25.0, P.logodds_min)
-    rig = PlannerRig(local_map, "pereira", ME, P)
-    places = [6.0, 7.0, 8.0, 9.0, 10.0]
-    for k, x in enumerate(places):
-        rig.scheme.on_record("place", values_of(Place(OTHER, k + 1, round(x * 10), 200, 8, 1 if k else 0)), NOW_US)
-    (region,) = rig.scheme.store.graph().regions
-    claim = Claim(OTHER, len(places) + 1, region.anchor_x_dm, region.anchor_y_dm, region.signature, 1, 0)
-    rig.scheme.on_record("claim", values_of(claim), NOW_US)
-    assert _filter(rig, (14.0, 20.0)) == []

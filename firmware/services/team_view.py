@@ -12,7 +12,6 @@ import numpy as np
 
 from firmware import kernels
 from firmware.params import ExplorationParams
-from firmware.services.dilation import dilate_square
 from firmware.services.local_map import LocalMap
 
 
@@ -45,38 +44,3 @@ def unseen_after_team_view_bit(local_map: LocalMap, sight: np.ndarray, waypoints
     team_sight = sight.copy()
     team_sight[seen] = kernels.SEEN_BY_TEAM
     return kernels.observable_unknown(team_sight, wi, wj, p.info_rays, reach_cells) * p.entropy_per_cell_bit
-
-
-def frontier_unseen_by_team_cells(local_map: LocalMap, sight: np.ndarray, waypoints_xy: np.ndarray,
-                                  places_xy: np.ndarray, params: ExplorationParams) -> np.ndarray:
-    """Per waypoint (rows of x, y in metres, all inside the window): how many frontier
-    cells (unknown cells next to a free one) it has in view that no ray cast from the
-    teammates' places reaches (team_view_rays within d_cam_m from either: a frontier is thin,
-    and a few rays would miss most of it).
-
-    Counting every unknown cell a waypoint sees overstates what it could show when the map
-    is partial: beyond the edge of what this robot saw lies unknown that rays pass through,
-    rock as often as room, and the far rim of a waypoint's reach is out of every teammate's
-    reach. A frontier cell a teammate had in view was looked past: the teammate saw the wall
-    or the space beyond it."""
-    p = params
-    wxy = np.asarray(waypoints_xy, np.float64).reshape(-1, 2)
-    if not len(wxy):
-        return np.zeros(0, np.int64)
-    band = (sight == kernels.UNKNOWN) & dilate_square(sight == kernels.FREE, 1)
-    reach_cells = p.d_cam_m / p.resolution_m
-    w_ij, _inside = local_map.cells_of(wxy)
-    in_view = []
-    for i, j in w_ij.tolist():
-        out = np.zeros(sight.shape, bool)
-        kernels.mark_visible(sight, np.array([i]), np.array([j]), p.team_view_rays, reach_cells, band, out)
-        in_view.append(out)
-    wanted = np.logical_or.reduce(in_view)
-    pxy = np.asarray(places_xy, np.float64).reshape(-1, 2)
-    if len(pxy):
-        d2 = ((pxy[:, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
-        pxy = pxy[d2 <= (2.0 * p.d_cam_m + 1.0) ** 2]
-    ij, inside = local_map.cells_of(pxy)
-    seen = np.zeros(sight.shape, bool)
-    kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], p.team_view_rays, reach_cells, wanted, seen)
-    return np.array([int((v & ~seen).sum()) for v in in_view], np.int64)

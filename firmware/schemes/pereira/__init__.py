@@ -54,10 +54,9 @@ Not yet, or not as the spec says:
 - the end-game safety net (the spec's, once every teammate is done) also serves a robot
   with nothing else left while teammates explore: it takes back rich waypoints
   (pereira_revive_min_bit) in claimed regions that no teammate left a place within
-  revive_clear_m of and that have pereira_revive_frontier_m of frontier in view that no
-  teammate's place (not only the claimants') had in view, where the spec subtracts the
-  claimants' view from the information; beyond the window only once every teammate is
-  done. A robot that has already stopped is woken only by a retraction;
+  revive_clear_m of and that keep pereira_revive_left_bit once the view from every
+  teammate's place (not only the claimants') counts as seen; beyond the window only once
+  every teammate is done. A robot that has already stopped is woken only by a retraction;
 - a robot that stops claims every region it has mapped whole (its places all known, none of
   the frontiers it leaves in it, no teammate's claim on it), beyond A2's window;
 - robots share no maps (as in the paper): a robot whose every frontier lies in regions

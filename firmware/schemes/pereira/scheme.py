@@ -46,7 +46,7 @@ from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_M
 from firmware.schemes.pereira.regions import RegionGraph
 from firmware.schemes.pereira.store import Store
 from firmware.services.pose import TravelMilestones
-from firmware.services.team_view import frontier_unseen_by_team_cells
+from firmware.services.team_view import unseen_after_team_view_bit
 from hal.samples import OdometrySample
 
 IDLE, EXPLORING, DONE = 0, 1, 2            # records.INTENT_STATES
@@ -362,16 +362,15 @@ class Pereira(Scheme):
     def _worth_taking_back(self, graph: RegionGraph, sight: np.ndarray, items: list, alone: bool) -> list[bool]:
         """Which of these waypoints (in regions teammates claimed) to take back: those
         promising pereira_revive_min_bit that no teammate left a place within revive_clear_m
-        of, and, in the window, with pereira_revive_frontier_m of frontier in view that no
-        teammate's place had in view (services.team_view). The robots share no maps, so
-        this robot's map shows everything teammates explored as unknown: taking back every
-        rich waypoint, the last robot on maze_a drove its teammates' regions again (1144 m
-        against their 100-490 m); with the place test alone (commit c368dee, seed 0 over
-        eu868-g3) the team had seen all of maze_a at 840 s and the last robot drove on,
-        taking waypoints back, until 1548 s; counting the unknown cells left out of the
-        teammates' view rather than the frontier, it still did on seed 3 (all seen at 680
-        s, the last robot on until 1120 s). Beyond the window there is nothing to cast
-        against, and only a robot with no teammate exploring takes a waypoint back there."""
+        of, and, in the window, that still promise pereira_revive_left_bit once what LiDARs
+        at the teammates' places would have seen counts as seen (services.team_view). The
+        robots share no maps, so this robot's map shows everything teammates explored as
+        unknown: taking back every rich waypoint, the last robot on maze_a drove its
+        teammates' regions again (1144 m against their 100-490 m); with the place test alone
+        (commit c368dee, seed 0 over eu868-g3) the team had seen all of maze_a at 840 s and
+        the last robot drove on, taking waypoints back, until 1548 s. Beyond the window
+        there is nothing to cast against, and only a robot with no teammate exploring takes
+        a waypoint back there."""
         p = self.s.params
         rich = [w.e_bit >= p.pereira_revive_min_bit and not self._teammate_stood_near(graph, w) for w in items]
         xy = np.array([(w.x_m, w.y_m) for w in items], np.float64).reshape(-1, 2)
@@ -380,9 +379,9 @@ class Pereira(Scheme):
         ask = np.nonzero(np.array(rich) & inside)[0]
         if len(ask):
             theirs = graph.places[graph.places[:, 2] != self.s.robot_id, :2] / 10.0
-            unseen = frontier_unseen_by_team_cells(self.s.local_map, sight, xy[ask], theirs, p)
-            for k, cells in zip(ask.tolist(), unseen.tolist()):
-                out[k] = cells * p.resolution_m >= p.pereira_revive_frontier_m
+            left_bit = unseen_after_team_view_bit(self.s.local_map, sight, xy[ask], theirs, p)
+            for k, bits in zip(ask.tolist(), left_bit.tolist()):
+                out[k] = bits >= p.pereira_revive_left_bit
         return out
 
     def _teammate_stood_near(self, graph: RegionGraph, w) -> bool:
