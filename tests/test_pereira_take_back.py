@@ -14,6 +14,7 @@ from firmware.schemes.base import PlanningView
 from firmware.schemes.pereira.records import Claim, Place, values_of
 from firmware.services.local_map import LocalMap
 from firmware.services.waypoints import Waypoint
+from host_tools.mission import MissionConfig, run_mission
 from tests.doubles import PlannerRig
 from tests.doubles import paint_box as paint
 
@@ -89,3 +90,14 @@ def test_a_robot_that_stops_claims_every_region_it_has_mapped_whole():
     assert _claims_on_stopping([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], []) == 0
     # A frontier it leaves there (given up, or behind a gap): not explored for it.
     assert _claims_on_stopping([6.0, 7.0, 8.0, 9.0, 10.0], [(14.0, 20.0)]) == 0
+
+
+def test_a_robot_with_nothing_else_left_repairs_a_claim_that_left_a_hole():
+    """The paper's eight-region map, two robots, seed 2: robot 1 stops after 19 m; robot 0
+    takes back waypoints in regions robot 1 claimed and finishes the map. Judging them by
+    the frontier a teammate had in view, instead of the unknown it could not have seen,
+    robot 0 took none back and both robots stopped at 0.70."""
+    r = run_mission(MissionConfig(map_spec="tests/data/pereira8.yaml", robots=2, seed=2, strategy="pereira",
+                                  max_sim_s=600))
+    assert r.coverage >= 0.99 and r.termination.startswith("complete")
+    assert sum(r.to_json()["explorer_stats"]["waypoints_taken_back"]) > 0
