@@ -83,7 +83,8 @@ def main(argv: list[str] | None = None) -> int:
                             radio=args.radio, max_sim_s=args.max_sim_s)
         rows, result = timeline(cfg, args.every_s, args.stat)
     except (TimelineError, ValueError, KeyError) as e:
-        print(f"team_timeline: {e}", file=sys.stderr)
+        # A KeyError's str() is its argument's repr: print the message itself.
+        print(f"team_timeline: {e.args[0] if isinstance(e, KeyError) and e.args else e}", file=sys.stderr)
         return 2
     print(markdown(rows, args.stat))
     print(f"\n{result.termination}: coverage {result.coverage:.4f}, T_total {result.t_total_s:.1f} s, "

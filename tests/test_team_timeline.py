@@ -25,3 +25,5 @@ def test_bad_input_is_named_before_the_mission(capsys):
     assert "--map no/such/map.yaml" in capsys.readouterr().err
     assert main(["--map", "cave:5:20x20", "--every-s", "2.5"]) == 2
     assert "--every-s 2.5" in capsys.readouterr().err
+    assert main(["--map", "cave:5:20x20", "--radio", "nosuch", "--max-sim-s", "5"]) == 2
+    assert "unknown radio profile 'nosuch'" in capsys.readouterr().err
