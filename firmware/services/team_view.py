@@ -26,7 +26,8 @@ def unseen_after_team_view_bit(local_map: LocalMap, sight: np.ndarray, waypoints
     if not len(wxy):
         return np.zeros(0)
     w_ij, _inside = local_map.cells_of(wxy)
-    wi, wj = w_ij[:, 0], w_ij[:, 1]
+    # Contiguous, as the kernels were compiled for at warm-up (a column view would compile anew).
+    wi, wj = np.ascontiguousarray(w_ij[:, 0]), np.ascontiguousarray(w_ij[:, 1])
     reach_cells = p.d_cam_m / p.resolution_m
     # observable_unknown below reads only the unknown cells its rays from these waypoints
     # reach: what the teammates saw elsewhere does not change the result.
