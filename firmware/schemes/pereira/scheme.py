@@ -343,21 +343,23 @@ class Pereira(Scheme):
             return
         graph = self.store.graph()
         self._label_grid(graph, view.sight, view.now_us)
-        keep, left = [], []
-        for w, r in zip(items, self._labels(graph, [(w.x_m, w.y_m) for w in items])):
-            (keep if r is None or r not in others else left).append((w, r))
+        labels = self._labels(graph, [(w.x_m, w.y_m) for w in items])
+        claimed = [r is not None and r in others for r in labels]
+        left = [w for w, c in zip(items, claimed) if c]
         alone = not self.s.roster.any_active(view.now_us)
-        back = self._worth_taking_back(graph, view.sight, [w for w, _r in left], alone) \
-            if left and (alone or not keep) else [False] * len(left)
-        for (w, r), taken in zip(left, back):
-            if taken:
-                keep.append((w, r))
+        back = iter(self._worth_taking_back(graph, view.sight, left, alone)
+                    if left and (alone or all(claimed)) else [False] * len(left))
+        kept = []
+        for w, r, c in zip(items, labels, claimed):
+            if not c:
+                kept.append(w)
+            elif next(back):
+                kept.append(w)
                 self.counts["waypoints_taken_back"] += 1
             else:
                 self.counts["waypoints_left_to_team"] += 1
                 self._left_labels.add(r)
-        kept = {id(w) for w, _r in keep}
-        items[:] = [w for w in items if id(w) in kept]
+        items[:] = kept
 
     def _worth_taking_back(self, graph: RegionGraph, sight: np.ndarray, items: list, alone: bool) -> list[bool]:
         """Which of these waypoints (in regions teammates claimed) to take back: those
