@@ -230,6 +230,13 @@ class ExplorationParams:
                                        "with nothing else left, or with no teammate exploring")
     pereira_revive_left_bit: float = _p(900.0, 'bit', 0.0, 1e9,
                                         "... if this much is left unseen by a LiDAR at every teammate's place")
+    # A robot with nothing else left heads for the regions teammates still explore, along the
+    # places they left (the region graph's edges), instead of stopping while they work on.
+    pereira_transit: bool = _p(True, 'bool', None, None,
+                               "with nothing else left, drive towards regions teammates still explore, along "
+                               "their places")
+    pereira_transit_new_m: float = _p(3.0, 'm', 0.1, 100.0,
+                                      "... to teammates' places at least this far from every place of the robot's own")
     # Within a category the spec's A9 orders by U = e_bit / (cost_m + pereira_cost_offset_m):
     # the paper weighs "size of frontier and cost" with no formula; the offset keeps a waypoint
     # under the robot from outweighing every other. pereira_by_cost=true orders by cost alone,

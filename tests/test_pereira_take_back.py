@@ -5,13 +5,14 @@ explores, and what they promise is still unseen from every teammate's place.
 The map: a corridor y in [19, 21] m from x = 5 to 35 m, walls along both sides, unknown
 beyond x = 35 m (the open end). Teammate 1 drove the corridor's west part and claims its
 region explored; this robot (0) has a rich waypoint at the open end."""
+import dataclasses
 import math
 
 import numpy as np
 
 from firmware.params import ExplorationParams
 from firmware.schemes.base import PlanningView
-from firmware.schemes.pereira.records import Claim, Place, values_of
+from firmware.schemes.pereira.records import DIR_CODES, Claim, Gate, Place, values_of
 from firmware.services.local_map import LocalMap
 from firmware.services.waypoints import Waypoint
 from host_tools.mission import MissionConfig, run_mission
@@ -25,26 +26,41 @@ AT_THE_END = (34.0, 20.0)                 # a waypoint at the corridor's open en
 FAR_AWAY = (20.0, 35.0)                   # a waypoint no place labels: in no region
 
 
-def _rig(teammate_places_x_m: list[float], teammate_active: bool) -> PlannerRig:
-    local_map = LocalMap(P, 20.0, 20.0)
+def _rig(teammate_places_x_m: list[float], teammate_active: bool, gate_at_x_m: float | None = None,
+         own_places_x_m: tuple[float, ...] = (), params: ExplorationParams = P) -> PlannerRig:
+    """Teammate 1's places along the corridor (y = 20 m), and its claim on the region of the
+    westmost one; with a gate across the corridor at gate_at_x_m, the places east of it are
+    a second region, which no one claims."""
+    local_map = LocalMap(params, 20.0, 20.0)
     local_map.logodds[:] = 0.0
-    paint(local_map, 5.0, 35.0, 19.0, 21.0, P.logodds_min)      # corridor floor, seen free
-    paint(local_map, 5.0, 35.0, 18.8, 18.9, P.logodds_max)      # south wall
-    paint(local_map, 5.0, 35.0, 21.1, 21.2, P.logodds_max)      # north wall
-    rig = PlannerRig(local_map, "pereira", ME, P)
+    paint(local_map, 5.0, 35.0, 19.0, 21.0, params.logodds_min)      # corridor floor, seen free
+    paint(local_map, 5.0, 35.0, 18.8, 18.9, params.logodds_max)      # south wall
+    paint(local_map, 5.0, 35.0, 21.1, 21.2, params.logodds_max)      # north wall
+    rig = PlannerRig(local_map, "pereira", ME, params)
     for k, x in enumerate(teammate_places_x_m):
         rig.scheme.on_record("place", values_of(Place(OTHER, k + 1, round(x * 10), 200, 8, 1 if k else 0)), NOW_US)
+    for k, x in enumerate(own_places_x_m):      # as if it had driven there (its records go to its store)
+        rig.scheme.store.add(Place(ME, k + 1, round(x * 10), 200, 8, 1 if k else 0))
+    oseq = len(teammate_places_x_m) + 1
+    if gate_at_x_m is not None:
+        across_the_corridor = DIR_CODES // 2
+        gate = Gate(OTHER, oseq, round(gate_at_x_m * 10), 200, across_the_corridor, 50)
+        rig.scheme.on_record("gate", values_of(gate), NOW_US)
+        oseq += 1
     graph = rig.scheme.store.graph()
-    (region,) = graph.regions
-    claim = Claim(OTHER, len(teammate_places_x_m) + 1, region.anchor_x_dm, region.anchor_y_dm, region.signature, 1, 0)
+    assert len(graph.regions) == (1 if gate_at_x_m is None else 2)
+    west = graph.regions[int(graph.region_of_place[0])]       # places sort by x: the first is the westmost
+    claim = Claim(OTHER, oseq, west.anchor_x_dm, west.anchor_y_dm, west.signature, 1, 0)
     rig.scheme.on_record("claim", values_of(claim), NOW_US)
     if teammate_active:
         rig.roster.heard_at(OTHER, 10.0, 20.0, NOW_US)
     return rig
 
 
-def _filter(rig: PlannerRig, *waypoints: tuple[float, float]) -> list[tuple[float, float]]:
-    rig.waypoints.items = [Waypoint(x, y, 2.0 * P.pereira_revive_min_bit) for x, y in waypoints]
+def _filter(rig: PlannerRig, *waypoints: tuple[float, ...]) -> list[tuple[float, float]]:
+    """The waypoints (x, y[, e_bit]; rich if no e_bit) the scheme keeps, the robot at (20, 20)."""
+    rig.waypoints.items = [Waypoint(w[0], w[1], w[2] if len(w) > 2 else 2.0 * P.pereira_revive_min_bit)
+                           for w in waypoints]
     view = PlanningView(20.0, 20.0, NOW_US, rig.local_map.layers().sight, None, frozenset(),
                         lambda cands: np.full(len(cands), math.inf))
     rig.scheme.filter_waypoints(view)
@@ -70,6 +86,39 @@ def test_what_a_teammates_place_had_in_view_stays_left_to_it():
     assert _filter(rig, AT_THE_END) == []
     rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], teammate_active=False)
     assert _filter(rig, AT_THE_END) == []
+
+
+ALONG_THE_CORRIDOR = [float(x) for x in range(6, 45)]    # teammate 1 drove on past the open end
+GATE_X_M = 35.5
+
+
+def test_a_robot_with_nothing_else_left_heads_for_a_region_a_teammate_still_explores():
+    """Everything this robot holds lies in the claimed west region, where the teammate stood
+    near enough to have seen it all (nothing to take back). East of the gate, past the open
+    end, lies a region no one claims: of its waypoints the robot keeps the one on the way
+    there, and maps its way in instead of stopping."""
+    rig = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M)
+    assert _filter(rig, (7.0, 20.0), AT_THE_END) == [AT_THE_END]
+    assert rig.stat("transit_choices") == 1 and rig.stat("waypoints_taken_back") == 0
+
+
+def test_a_pocket_too_far_to_head_for_is_not_something_else_left():
+    rig = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M)
+    pocket_far_away = (*FAR_AWAY, P.report_unreachable_bit / 2)
+    assert _filter(rig, (7.0, 20.0), AT_THE_END, pocket_far_away) == [FAR_AWAY, AT_THE_END]
+    assert rig.stat("transit_choices") == 1
+
+
+def test_no_transit_to_where_the_robot_has_been_when_alone_or_when_switched_off():
+    near_my_places = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M,
+                          own_places_x_m=(37.0, 39.0, 41.0, 43.0))
+    alone = _rig(ALONG_THE_CORRIDOR, teammate_active=False, gate_at_x_m=GATE_X_M)
+    off = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M,
+               params=dataclasses.replace(P, pereira_transit=False))
+    all_claimed = _rig(ALONG_THE_CORRIDOR, teammate_active=True)
+    for rig in (near_my_places, alone, off, all_claimed):
+        assert _filter(rig, (7.0, 20.0), AT_THE_END) == []
+        assert rig.stat("transit_choices") == 0
 
 
 def _claims_on_stopping(places_x_m: list[float], frontiers_left_xy: list[tuple[float, float]]) -> int:

@@ -123,15 +123,15 @@ class WaypointSet:
         r2 = self.p.ban_radius_m ** 2
         self.items = [w for w in self.items if (w.x_m - x_m) ** 2 + (w.y_m - y_m) ** 2 >= r2]
 
-    def worth_heading_for(self, x_m: float, y_m: float,
-                          held: tuple[float, float] | None = None) -> list[Waypoint]:
-        """The members of W a robot at (x_m, y_m) may head for: every one holding at least
+    def worth_heading_for(self, x_m: float, y_m: float, held: tuple[float, float] | None = None,
+                          among: list[Waypoint] | None = None) -> list[Waypoint]:
+        """The members of W (or of `among`) a robot at (x_m, y_m) may head for: every one holding at least
         report_unreachable_bit, pockets (less) within pocket_reach_m, the one at held (the
         current target: a path that bends away from it does not drop it) and those taken up
         despite a ban (take_up: a frontier's one try before stopping). A pocket is
         too small to matter for the mission's end (no frontier hiding less is reported), so
         it is looked into on the way past and not driven back to across the map."""
-        return [w for w in self.items
+        return [w for w in (self.items if among is None else among)
                 if w.taken_up or (w.x_m, w.y_m) == held or self._worth(w.e_bit, w.x_m - x_m, w.y_m - y_m)]
 
     def _worth(self, e_bit, dx_m, dy_m):

@@ -29,6 +29,9 @@ import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import cKDTree
 
 from firmware import kernels
 from firmware.scheduler import Task
@@ -140,7 +143,7 @@ class Pereira(Scheme):
         self.counts = dict.fromkeys((
             "places_sent", "gates_sent", "claims_sent", "claims_retracted", "intents_sent", "summaries_sent",
             "records_pushed", "records_heard_new", "waypoints_left_to_team", "waypoints_taken_back",
-            "choices_yielded", "records_dropped_by_link", "claims_on_stopping"), 0)
+            "choices_yielded", "records_dropped_by_link", "claims_on_stopping", "transit_choices"), 0)
 
     def tasks(self) -> list[Task]:
         p = self.s.params
@@ -359,7 +362,63 @@ class Pereira(Scheme):
             else:
                 self.counts["waypoints_left_to_team"] += 1
                 self._left_labels.add(r)
+        worth = self.s.waypoints.worth_heading_for
+        if left and not alone and self.s.params.pereira_transit and not worth(view.x_m, view.y_m, among=kept):
+            w = self._transit(graph, left, view.x_m, view.y_m)
+            if w is not None:
+                kept.append(w)
+                self.counts["transit_choices"] += 1
         items[:] = kept
+
+    def _transit(self, graph: RegionGraph, items: list, x_m: float, y_m: float):
+        """Of these waypoints (all in regions teammates claimed), the one worth heading for on
+        the shortest way to a region teammates still explore: the distance to the waypoint,
+        then from it to a place near it and along the places' edges (teammates drove them, or their maps
+        certified them free) to a teammate's place in such a region that this robot has not
+        been near. None if no such place is left or none is joined to these waypoints. The
+        robot then maps its way through claimed regions, whose waypoints it leaves to the
+        team once there are others, instead of stopping while its teammates work on."""
+        to_work_dm = self._distance_to_work_dm(graph)
+        if to_work_dm is None:
+            return None
+        reach_dm = self.s.params.pereira_label_reach_m * 10
+        pl = graph.places
+        best, best_m = None, math.inf
+        for w in self.s.waypoints.worth_heading_for(x_m, y_m, among=items):
+            near = graph.places_within(w.x_m * 10, w.y_m * 10, reach_dm)
+            if not len(near):
+                continue
+            via_dm = np.hypot(pl[near, 0] - w.x_m * 10, pl[near, 1] - w.y_m * 10) + to_work_dm[near]
+            total_m = math.hypot(w.x_m - x_m, w.y_m - y_m) + float(via_dm.min()) / 10
+            if total_m < best_m:
+                best, best_m = w, total_m
+        return best
+
+    def _distance_to_work_dm(self, graph: RegionGraph) -> np.ndarray | None:
+        """Each place's distance (dm) along the place graph to the nearest teammate's place
+        that lies in a region no claim calls explored, that this robot has not judged
+        explored itself, and that is pereira_transit_new_m from every place of this robot's
+        own; None if there is none."""
+        p = self.s.params
+        pl = graph.places
+        mine = pl[:, 2] == self.s.robot_id
+        done_by_others = self._explored_by_others()
+        open_regions = [k for k, r in enumerate(graph.regions)
+                        if not r.virtual and k not in done_by_others
+                        and self._clean.get(r.id, 0) < p.pereira_explored_cycles
+                        and not self._claimed.get(r.id, (0, 0, 0, 0))[3]]
+        source = np.isin(graph.region_of_place, open_regions) & ~mine
+        if mine.any() and source.any():
+            gap_dm = cKDTree(pl[mine, :2].astype(np.float64)).query(pl[source, :2].astype(np.float64))[0]
+            source[np.flatnonzero(source)[gap_dm < p.pereira_transit_new_m * 10]] = False
+        if not source.any():
+            return None
+        e = graph.edges
+        n = len(pl)
+        # csgraph reads an explicit zero as no edge: places of two robots may coincide.
+        length_dm = np.maximum(np.hypot(pl[e[:, 0], 0] - pl[e[:, 1], 0], pl[e[:, 0], 1] - pl[e[:, 1], 1]), 1e-3)
+        edges = coo_matrix((length_dm, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+        return dijkstra(edges, directed=False, indices=np.flatnonzero(source), min_only=True)
 
     def _worth_taking_back(self, graph: RegionGraph, sight: np.ndarray, items: list, alone: bool) -> list[bool]:
         """Which of these waypoints (in regions teammates claimed) to take back: those
