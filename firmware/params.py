@@ -230,6 +230,10 @@ class ExplorationParams:
                                        "with nothing else left, or with no teammate exploring")
     pereira_revive_left_bit: float = _p(900.0, 'bit', 0.0, 1e9,
                                         "... if this much is left unseen by a LiDAR at every teammate's place")
+    # Waypoints in regions no one claimed are dropped when the teammates' places saw what they
+    # promise (the take-back's test): claims come late, or never for a region explored in parts.
+    pereira_team_view: bool = _p(True, 'bool', None, None,
+                                 "waypoints in unclaimed regions that teammates' places saw are dropped")
     # A robot with nothing else left heads for the regions teammates still explore, along the
     # places they left (the region graph's edges), instead of stopping while they work on.
     pereira_transit: bool = _p(True, 'bool', None, None,

@@ -3,10 +3,12 @@ else (a parameter set with --set, or the code): per map and scheme, the median p
 their ratio with the sweep's 90 % bootstrap interval, the lowest and the median coverage, the
 runs that reached 0.99 and T_total / T_90.
 
-    python -m host_tools.compare_grids NEW_OUT OLD_OUT
+    python -m host_tools.compare_grids NEW_OUT OLD_OUT [--schemes A:B]
 
 reads NEW_OUT/trials.jsonl and OLD_OUT/trials.jsonl (as `lorascout sweep --out` writes them)
-and prints a Markdown table; the ratio is NEW / OLD."""
+and prints a Markdown table; the ratio is NEW / OLD. With --schemes A:B, scheme A's trials
+in NEW against scheme B's in OLD (e.g. a scheme on new code against a baseline whose code
+did not change since the older grid ran)."""
 from __future__ import annotations
 
 import argparse
@@ -60,8 +62,12 @@ def _groups(trials: list[dict]) -> dict[tuple[str, str, str], dict[int, dict]]:
     return out
 
 
-def compare(new: list[dict], old: list[dict]) -> list[dict]:
-    """One row per (map, scheme, radio) in both grids, over the seeds both ran."""
+def compare(new: list[dict], old: list[dict], schemes: tuple[str, str] | None = None) -> list[dict]:
+    """One row per (map, scheme, radio) in both grids, over the seeds both ran; with
+    schemes (A, B), one per (map, radio): A in new against B in old."""
+    if schemes is not None:
+        new = [t for t in new if t["strategy"] == schemes[0]]
+        old = [{**t, "strategy": schemes[0]} for t in old if t["strategy"] == schemes[1]]
     a, b = _groups(new), _groups(old)
     rows = []
     for key in sorted(a.keys() & b.keys()):
@@ -73,7 +79,8 @@ def compare(new: list[dict], old: list[dict]) -> list[dict]:
         med = lambda ts: statistics.median(t["p_max_m"] for t in ts)  # noqa: E731
         tail = lambda ts: _median_or_none([t["t_total_s"] / t["t_90_s"] for t in ts if t["t_90_s"]])  # noqa: E731
         lo, hi = ratio_interval([t["p_max_m"] for t in x], [t["p_max_m"] for t in y])
-        rows.append({"map": key[0], "scheme": key[1], "radio": key[2], "seeds": seeds,
+        scheme = key[1] if schemes is None else f"{schemes[0]} / {schemes[1]}"
+        rows.append({"map": key[0], "scheme": scheme, "radio": key[2], "seeds": seeds,
                      "p_max_new_m": med(x), "p_max_old_m": med(y), "ratio": med(x) / med(y),
                      "interval": (lo, hi),
                      "coverage_min_new": min(t["coverage"] for t in x),
@@ -125,9 +132,16 @@ def main(argv: list[str] | None = None) -> int:
                                  description="compare two finished sweeps (ratio NEW / OLD per map and scheme)")
     ap.add_argument("new", type=Path, help="the --out of one sweep")
     ap.add_argument("old", type=Path, help="the --out of the sweep to compare it with")
+    ap.add_argument("--schemes", metavar="A:B",
+                    help="compare scheme A in NEW with scheme B in OLD (default: each scheme with itself)")
     args = ap.parse_args(argv)
+    schemes = None
+    if args.schemes is not None:
+        schemes = tuple(args.schemes.split(":"))
+        if len(schemes) != 2 or not all(schemes):
+            ap.error(f"--schemes {args.schemes!r}: expected two scheme names as A:B, e.g. pereira:minpos")
     try:
-        rows = compare(load_trials(args.new), load_trials(args.old))
+        rows = compare(load_trials(args.new), load_trials(args.old), schemes)
     except GridError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -24,6 +24,30 @@ def test_the_ratio_is_of_the_medians_over_the_seeds_both_ran(tmp_path, capsys):
     assert cells[9] == "2.0 / 2.0"
 
 
+def test_one_scheme_in_new_against_another_in_old(tmp_path, capsys):
+    new = write_grid(tmp_path, "new", [_trial(0, 300.0, strategy="pereira"), _trial(1, 500.0, strategy="pereira"),
+                                       _trial(0, 1.0)])
+    old = write_grid(tmp_path, "old", [_trial(0, 100.0), _trial(1, 200.0), _trial(0, 5.0, strategy="pereira")])
+    assert main([str(new), str(old), "--schemes", "pereira:minpos"]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| maze_a")]
+    assert len(rows) == 1
+    cells = [c.strip() for c in rows[0].split("|")]
+    assert cells[2].startswith("pereira / minpos") and cells[4] == "400.0 / 150.0"
+    assert cells[5].startswith("2.67 (")
+
+
+def test_schemes_must_be_two_names(tmp_path, capsys):
+    grid = write_grid(tmp_path, "g", [_trial(0, 1.0)])
+    for bad in ("pereira", "pereira:", ":minpos", "a:b:c"):
+        try:
+            main([str(grid), str(grid), "--schemes", bad])
+        except SystemExit as e:
+            assert e.code == 2
+        else:
+            raise AssertionError(f"--schemes {bad} accepted")
+        assert "--schemes" in capsys.readouterr().err
+
+
 def test_a_scheme_with_no_run_reaching_0_9_has_no_tail(tmp_path, capsys):
     slow = {**_trial(0, 100.0, 0.85), "t_90_s": None}
     new = write_grid(tmp_path, "new", [_trial(0, 100.0)])

@@ -12,7 +12,7 @@ import numpy as np
 
 from firmware.params import ExplorationParams
 from firmware.schemes.base import PlanningView
-from firmware.schemes.pereira.records import DIR_CODES, Claim, Gate, Place, values_of
+from firmware.schemes.pereira.records import DIR_CODES, INTENT_STATES, Claim, Gate, Intent, Place, values_of
 from firmware.services.local_map import LocalMap
 from firmware.services.waypoints import Waypoint
 from host_tools.mission import MissionConfig, run_mission
@@ -27,10 +27,12 @@ FAR_AWAY = (20.0, 35.0)                   # a waypoint no place labels: in no re
 
 
 def _rig(teammate_places_x_m: list[float], teammate_active: bool, gate_at_x_m: float | None = None,
-         own_places_x_m: tuple[float, ...] = (), params: ExplorationParams = P) -> PlannerRig:
+         own_places_x_m: tuple[float, ...] = (), params: ExplorationParams = P,
+         heading_for_x_m: float | None = None) -> PlannerRig:
     """Teammate 1's places along the corridor (y = 20 m), and its claim on the region of the
     westmost one; with a gate across the corridor at gate_at_x_m, the places east of it are
-    a second region, which no one claims."""
+    a second region, which no one claims. With heading_for_x_m, teammate 1's intent: it
+    explores, its goal on the corridor there."""
     local_map = LocalMap(params, 20.0, 20.0)
     local_map.logodds[:] = 0.0
     paint(local_map, 5.0, 35.0, 19.0, 21.0, params.logodds_min)      # corridor floor, seen free
@@ -54,6 +56,11 @@ def _rig(teammate_places_x_m: list[float], teammate_active: bool, gate_at_x_m: f
     rig.scheme.on_record("claim", values_of(claim), NOW_US)
     if teammate_active:
         rig.roster.heard_at(OTHER, 10.0, 20.0, NOW_US)
+    if heading_for_x_m is not None:
+        exploring = INTENT_STATES.index("exploring")
+        goal_dm = round(heading_for_x_m * 10)
+        intent = Intent(OTHER, goal_dm - 10, 200, goal_dm, 200, 10, exploring, 0, 1)
+        rig.scheme.on_record("intent", values_of(intent), NOW_US)
     return rig
 
 
@@ -90,6 +97,7 @@ def test_what_a_teammates_place_had_in_view_stays_left_to_it():
 
 ALONG_THE_CORRIDOR = [float(x) for x in range(6, 45)]    # teammate 1 drove on past the open end
 GATE_X_M = 35.5
+EAST_GOAL_X_M = 44.0                                     # where teammate 1 is heading: east of the gate
 
 
 def test_a_robot_with_nothing_else_left_heads_for_a_region_a_teammate_still_explores():
@@ -97,26 +105,29 @@ def test_a_robot_with_nothing_else_left_heads_for_a_region_a_teammate_still_expl
     near enough to have seen it all (nothing to take back). East of the gate, past the open
     end, lies a region no one claims: of its waypoints the robot keeps the one on the way
     there, and maps its way in instead of stopping."""
-    rig = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M)
+    rig = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M, heading_for_x_m=EAST_GOAL_X_M)
     assert _filter(rig, (7.0, 20.0), AT_THE_END) == [AT_THE_END]
     assert rig.stat("transit_choices") == 1 and rig.stat("waypoints_taken_back") == 0
 
 
 def test_a_pocket_too_far_to_head_for_is_not_something_else_left():
-    rig = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M)
+    rig = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M, heading_for_x_m=EAST_GOAL_X_M)
     pocket_far_away = (*FAR_AWAY, P.report_unreachable_bit / 2)
-    assert _filter(rig, (7.0, 20.0), AT_THE_END, pocket_far_away) == [FAR_AWAY, AT_THE_END]
+    assert _filter(rig, (7.0, 20.0), AT_THE_END, pocket_far_away) == [AT_THE_END, FAR_AWAY]
     assert rig.stat("transit_choices") == 1
 
 
-def test_no_transit_to_where_the_robot_has_been_when_alone_or_when_switched_off():
-    near_my_places = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M,
-                          own_places_x_m=(37.0, 39.0, 41.0, 43.0))
-    alone = _rig(ALONG_THE_CORRIDOR, teammate_active=False, gate_at_x_m=GATE_X_M)
-    off = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M,
-               params=dataclasses.replace(P, pereira_transit=False))
-    all_claimed = _rig(ALONG_THE_CORRIDOR, teammate_active=True)
-    for rig in (near_my_places, alone, off, all_claimed):
+def test_no_transit_where_no_teammate_heads_where_the_robot_has_been_when_alone_or_switched_off():
+    heading = dict(gate_at_x_m=GATE_X_M, heading_for_x_m=EAST_GOAL_X_M)
+    no_one_heads_east = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M)
+    heads_west = _rig(ALONG_THE_CORRIDOR, teammate_active=True, gate_at_x_m=GATE_X_M, heading_for_x_m=8.0)
+    near_my_places = _rig(ALONG_THE_CORRIDOR, teammate_active=True, own_places_x_m=(37.0, 39.0, 41.0, 43.0),
+                          **heading)
+    alone = _rig(ALONG_THE_CORRIDOR, teammate_active=False, gate_at_x_m=GATE_X_M)   # (an intent is news of it)
+    off = _rig(ALONG_THE_CORRIDOR, teammate_active=True, params=dataclasses.replace(P, pereira_transit=False),
+               **heading)
+    all_claimed = _rig(ALONG_THE_CORRIDOR, teammate_active=True, heading_for_x_m=EAST_GOAL_X_M)
+    for rig in (no_one_heads_east, heads_west, near_my_places, alone, off, all_claimed):
         assert _filter(rig, (7.0, 20.0), AT_THE_END) == []
         assert rig.stat("transit_choices") == 0
 

@@ -33,7 +33,8 @@ the same records hold the identical graph, bit for bit (`RegionGraph.digest`).
 
 `RegionGraph.label` places a point in a region for private decisions (nearest place with
 no gate between, else the virtual region beyond the gate crossed) where the robot's label
-grid (labels.py, 5.2 d) does not reach. Not here yet: routing over the graph.
+grid (labels.py, 5.2 d) does not reach. The scheme measures ways along the place edges to
+choose where to head (Pereira._transit); paths themselves stay on the robot's own map.
 """
 from __future__ import annotations
 

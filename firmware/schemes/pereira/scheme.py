@@ -15,8 +15,9 @@ as gate records of origin 254 from the start and finds no gates of its own.
 
 Its planning stage places waypoints in regions by its label grid (labels.py), then:
 waypoints in regions a teammate's claim calls explored are left to the
-team (A5, A6; a robot with nothing else left, or no teammate exploring, takes back those
-still worth it); the others are
+team (A5, A6; a robot with nothing else left heads for a region a teammate explores
+along their places, or, with none, or no teammate exploring, takes back those still worth
+it); the others are
 ranked by category (f^fu, f^c, f^fs, f^o) and by Algorithm 1's conflict rule with eq. (3)
 against the `intent`s teammates broadcast (choice.py); the shared choice takes the
 cheapest of the best rank. Records reach robots out of range through others: a `summary`
@@ -143,7 +144,8 @@ class Pereira(Scheme):
         self.counts = dict.fromkeys((
             "places_sent", "gates_sent", "claims_sent", "claims_retracted", "intents_sent", "summaries_sent",
             "records_pushed", "records_heard_new", "waypoints_left_to_team", "waypoints_taken_back",
-            "choices_yielded", "records_dropped_by_link", "claims_on_stopping", "transit_choices"), 0)
+            "choices_yielded", "records_dropped_by_link", "claims_on_stopping", "transit_choices",
+            "waypoints_seen_by_team"), 0)
 
     def tasks(self) -> list[Task]:
         p = self.s.params
@@ -335,9 +337,11 @@ class Pereira(Scheme):
     # --- the planning stage -----------------------------------------------------------
     def filter_waypoints(self, view: PlanningView) -> None:
         """Waypoints in regions a teammate's claim calls explored are left to the team (A5,
-        A6), unless this robot has nothing else left, or no teammate explores any more, and
-        they are worth taking back (_worth_taking_back; the spec's end-game safety net: a
-        claim made for the region as its claimant knew it must not leave a hole)."""
+        A6). A robot with nothing else worth heading for, while teammates explore, keeps the
+        one on its way to a region a teammate is heading for (_transit); with none, or with
+        no teammate exploring any more, it takes back those worth it (_worth_taking_back;
+        the spec's end-game safety net: a claim made for the region as its claimant knew it
+        must not leave a hole)."""
         items = self.s.waypoints.items
         if not items:
             return
@@ -350,35 +354,65 @@ class Pereira(Scheme):
         claimed = [r is not None and r in others for r in labels]
         left = [w for w, c in zip(items, claimed) if c]
         alone = not self.s.roster.any_active(view.now_us)
+        seen = self._seen_by_team(graph, view.sight, items, claimed)
+        own = [w for w, c, sn in zip(items, claimed, seen) if not c and not sn]
+        transit = None
+        if left and not alone and self.s.params.pereira_transit and \
+                not self.s.waypoints.worth_heading_for(view.x_m, view.y_m, among=own):
+            transit = self._transit(graph, left, view.x_m, view.y_m, view.now_us)
         back = iter(self._worth_taking_back(graph, view.sight, left, alone)
-                    if left and (alone or all(claimed)) else [False] * len(left))
+                    if left and transit is None and (alone or all(claimed)) else [False] * len(left))
         kept = []
-        for w, r, c in zip(items, labels, claimed):
-            if not c:
+        for w, r, c, sn in zip(items, labels, claimed, seen):
+            if sn:
+                self.counts["waypoints_seen_by_team"] += 1
+            elif not c:
                 kept.append(w)
-            elif next(back):
+            elif next(back) or w is transit:
                 kept.append(w)
-                self.counts["waypoints_taken_back"] += 1
+                self.counts["transit_choices" if w is transit else "waypoints_taken_back"] += 1
             else:
                 self.counts["waypoints_left_to_team"] += 1
                 self._left_labels.add(r)
-        worth = self.s.waypoints.worth_heading_for
-        if left and not alone and self.s.params.pereira_transit and not worth(view.x_m, view.y_m, among=kept):
-            w = self._transit(graph, left, view.x_m, view.y_m)
-            if w is not None:
-                kept.append(w)
-                self.counts["transit_choices"] += 1
         items[:] = kept
 
-    def _transit(self, graph: RegionGraph, items: list, x_m: float, y_m: float):
+    def _seen_by_team(self, graph: RegionGraph, sight: np.ndarray, items: list, claimed: list[bool]) -> list[bool]:
+        """Which waypoints in regions no teammate claimed its teammates have seen: in the
+        window, a teammate's place within d_cam_m, and less than pereira_revive_left_bit
+        left once what LiDARs at the teammates' places would have seen counts as seen (the
+        test a take-back passes, services.team_view). Claims come late (A2 wants a whole
+        region in one robot's window; a region several robots explored in parts may never
+        be claimed), and without this a team that had seen all of maze_a drove on for
+        minutes through regions no one had claimed. The robot's current target stays."""
+        p = self.s.params
+        out = [False] * len(items)
+        if not p.pereira_team_view:
+            return out
+        theirs = graph.places[graph.places[:, 2] != self.s.robot_id, :2] / 10.0
+        if not len(theirs):
+            return out
+        t = self.s.current_target()
+        held = None if t is None else (t.x_m, t.y_m)
+        xy = np.array([(w.x_m, w.y_m) for w in items], np.float64).reshape(-1, 2)
+        _ij, inside = self.s.local_map.cells_of(xy)
+        near = cKDTree(theirs).query(xy, distance_upper_bound=p.d_cam_m)[0] < math.inf
+        ask = np.flatnonzero(inside & near & ~np.array(claimed, bool))
+        ask = np.array([k for k in ask.tolist() if (items[k].x_m, items[k].y_m) != held], np.int64)
+        if len(ask):
+            left_bit = unseen_after_team_view_bit(self.s.local_map, sight, xy[ask], theirs, p)
+            for k, bits in zip(ask.tolist(), left_bit.tolist()):
+                out[k] = bits < p.pereira_revive_left_bit
+        return out
+
+    def _transit(self, graph: RegionGraph, items: list, x_m: float, y_m: float, now_us: int):
         """Of these waypoints (all in regions teammates claimed), the one worth heading for on
-        the shortest way to a region teammates still explore: the distance to the waypoint,
+        the shortest way to a region teammates are exploring: the distance to the waypoint,
         then from it to a place near it and along the places' edges (teammates drove them, or their maps
         certified them free) to a teammate's place in such a region that this robot has not
         been near. None if no such place is left or none is joined to these waypoints. The
         robot then maps its way through claimed regions, whose waypoints it leaves to the
         team once there are others, instead of stopping while its teammates work on."""
-        to_work_dm = self._distance_to_work_dm(graph)
+        to_work_dm = self._distance_to_work_dm(graph, now_us)
         if to_work_dm is None:
             return None
         reach_dm = self.s.params.pereira_label_reach_m * 10
@@ -394,19 +428,21 @@ class Pereira(Scheme):
                 best, best_m = w, total_m
         return best
 
-    def _distance_to_work_dm(self, graph: RegionGraph) -> np.ndarray | None:
+    def _distance_to_work_dm(self, graph: RegionGraph, now_us: int) -> np.ndarray | None:
         """Each place's distance (dm) along the place graph to the nearest teammate's place
-        that lies in a region no claim calls explored, that this robot has not judged
-        explored itself, and that is pereira_transit_new_m from every place of this robot's
-        own; None if there is none."""
+        in a region a teammate is heading for (its intent), that no claim calls explored,
+        that this robot has not judged explored itself, and that is pereira_transit_new_m
+        from every place of this robot's own; None if there is none. Regions no one claims
+        but no one heads for are left alone: claims come late (A2 wants all of a region in
+        the claimant's window), and a team that has seen everything still holds many."""
         p = self.s.params
         pl = graph.places
         mine = pl[:, 2] == self.s.robot_id
         done_by_others = self._explored_by_others()
-        open_regions = [k for k, r in enumerate(graph.regions)
-                        if not r.virtual and k not in done_by_others
-                        and self._clean.get(r.id, 0) < p.pereira_explored_cycles
-                        and not self._claimed.get(r.id, (0, 0, 0, 0))[3]]
+        open_regions = [k for k in self._headings(graph, now_us)
+                        if not graph.regions[k].virtual and k not in done_by_others
+                        and self._clean.get(graph.regions[k].id, 0) < p.pereira_explored_cycles
+                        and not self._claimed.get(graph.regions[k].id, (0, 0, 0, 0))[3]]
         source = np.isin(graph.region_of_place, open_regions) & ~mine
         if mine.any() and source.any():
             gap_dm = cKDTree(pl[mine, :2].astype(np.float64)).query(pl[source, :2].astype(np.float64))[0]
