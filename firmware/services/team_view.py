@@ -16,8 +16,7 @@ from firmware.services.local_map import LocalMap
 
 
 def unseen_after_team_view_bit(local_map: LocalMap, sight: np.ndarray, waypoints_xy: np.ndarray,
-                               places_xy: np.ndarray, params: ExplorationParams,
-                               within_m: float | None = None) -> np.ndarray:
+                               places_xy: np.ndarray, params: ExplorationParams) -> np.ndarray:
     """Per waypoint (rows of x, y in metres, all inside the window): the unknown it would
     show (observable_unknown over info_rays within d_cam_m), in bits, with the cells that
     team_view_rays cast from the teammates' places (rows of x, y) reach marked as seen. Rays
@@ -45,5 +44,4 @@ def unseen_after_team_view_bit(local_map: LocalMap, sight: np.ndarray, waypoints
     kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], p.team_view_rays, reach_cells, counted, seen)
     team_sight = sight.copy()
     team_sight[seen] = kernels.SEEN_BY_TEAM
-    count_cells = reach_cells if within_m is None else min(reach_cells, within_m / p.resolution_m)
-    return kernels.observable_unknown(team_sight, wi, wj, p.info_rays, count_cells) * p.entropy_per_cell_bit
+    return kernels.observable_unknown(team_sight, wi, wj, p.info_rays, reach_cells) * p.entropy_per_cell_bit
