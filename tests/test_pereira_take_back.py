@@ -28,9 +28,9 @@ FAR_AWAY = (20.0, 35.0)                   # a waypoint no place labels: in no re
 
 def _rig(teammate_places_x_m: list[float], teammate_active: bool, gate_at_x_m: float | None = None,
          own_places_x_m: tuple[float, ...] = (), params: ExplorationParams = P,
-         heading_for_x_m: float | None = None) -> PlannerRig:
-    """Teammate 1's places along the corridor (y = 20 m), and its claim on the region of the
-    westmost one; with a gate across the corridor at gate_at_x_m, the places east of it are
+         heading_for_x_m: float | None = None, claim: bool = True) -> PlannerRig:
+    """Teammate 1's places along the corridor (y = 20 m), and (with claim) its claim on the
+    region of the westmost one; with a gate across the corridor at gate_at_x_m, the places east of it are
     a second region, which no one claims. With heading_for_x_m, teammate 1's intent: it
     explores, its goal on the corridor there."""
     local_map = LocalMap(params, 20.0, 20.0)
@@ -52,8 +52,9 @@ def _rig(teammate_places_x_m: list[float], teammate_active: bool, gate_at_x_m: f
     graph = rig.scheme.store.graph()
     assert len(graph.regions) == (1 if gate_at_x_m is None else 2)
     west = graph.regions[int(graph.region_of_place[0])]       # places sort by x: the first is the westmost
-    claim = Claim(OTHER, oseq, west.anchor_x_dm, west.anchor_y_dm, west.signature, 1, 0)
-    rig.scheme.on_record("claim", values_of(claim), NOW_US)
+    if claim:
+        rig.scheme.on_record("claim", values_of(Claim(OTHER, oseq, west.anchor_x_dm, west.anchor_y_dm,
+                                                      west.signature, 1, 0)), NOW_US)
     if teammate_active:
         rig.roster.heard_at(OTHER, 10.0, 20.0, NOW_US)
     if heading_for_x_m is not None:
@@ -98,6 +99,16 @@ def test_what_a_teammates_place_had_in_view_stays_left_to_it():
 ALONG_THE_CORRIDOR = [float(x) for x in range(6, 45)]    # teammate 1 drove on past the open end
 GATE_X_M = 35.5
 EAST_GOAL_X_M = 44.0                                     # where teammate 1 is heading: east of the gate
+
+
+def test_waypoints_teammates_places_saw_are_dropped_claimed_or_not():
+    """No claim at all: teammate 1 drove the whole corridor, so what the waypoint at its end
+    promises was seen from its places; the waypoint no place is near stays."""
+    for team_view, kept in ((True, [FAR_AWAY]), (False, [AT_THE_END, FAR_AWAY])):
+        rig = _rig(ALONG_THE_CORRIDOR, teammate_active=True, claim=False,
+                   params=dataclasses.replace(P, pereira_team_view=team_view))
+        assert _filter(rig, AT_THE_END, FAR_AWAY) == kept
+        assert rig.stat("waypoints_seen_by_team") == (1 if team_view else 0)
 
 
 def test_a_robot_with_nothing_else_left_heads_for_a_region_a_teammate_still_explores():

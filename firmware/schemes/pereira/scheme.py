@@ -337,20 +337,24 @@ class Pereira(Scheme):
     # --- the planning stage -----------------------------------------------------------
     def filter_waypoints(self, view: PlanningView) -> None:
         """Waypoints in regions a teammate's claim calls explored are left to the team (A5,
-        A6). A robot with nothing else worth heading for, while teammates explore, keeps the
-        one on its way to a region a teammate is heading for (_transit); with none, or with
-        no teammate exploring any more, it takes back those worth it (_worth_taking_back;
-        the spec's end-game safety net: a claim made for the region as its claimant knew it
-        must not leave a hole)."""
+        A6); the others are dropped where the teammates' places saw what they promise
+        (_seen_by_team). A robot with nothing else worth heading for, while teammates
+        explore, keeps the one on its way to a region a teammate is heading for (_transit);
+        with none, or with no teammate exploring any more, it takes back those worth it
+        (_worth_taking_back; the spec's end-game safety net: a claim made for the region as
+        its claimant knew it must not leave a hole)."""
         items = self.s.waypoints.items
         if not items:
             return
         others = self._explored_by_others()
-        if not others:
+        if not others and not self.s.params.pereira_team_view:
             return
         graph = self.store.graph()
-        self._label_grid(graph, view.sight, view.now_us)
-        labels = self._labels(graph, [(w.x_m, w.y_m) for w in items])
+        if others:
+            self._label_grid(graph, view.sight, view.now_us)
+            labels = self._labels(graph, [(w.x_m, w.y_m) for w in items])
+        else:
+            labels = [None] * len(items)
         claimed = [r is not None and r in others for r in labels]
         left = [w for w, c in zip(items, claimed) if c]
         alone = not self.s.roster.any_active(view.now_us)
