@@ -227,17 +227,18 @@ class ExplorationParams:
                                        'a gate needs free space (1 + this) times its clearance wide beyond it')
     pereira_revive_min_bit: float = _p(4000.0, 'bit', 0.0, 1e9,
                                        "waypoints this rich in regions others claimed are taken back by a robot "
-                                       "with nothing else left, or with no teammate exploring")
+                                       "with nothing else left and no teammate's region to head for, or with no "
+                                       "teammate exploring")
     pereira_revive_left_bit: float = _p(900.0, 'bit', 0.0, 1e9,
                                         "... if this much is left unseen by a LiDAR at every teammate's place")
     # Waypoints in regions no one claimed are dropped when the teammates' places saw what they
     # promise (the take-back's test): claims come late, or never for a region explored in parts.
     pereira_team_view: bool = _p(True, 'bool', None, None,
                                  "waypoints in unclaimed regions that teammates' places saw are dropped")
-    # A robot with nothing else left heads for the regions teammates still explore, along the
-    # places they left (the region graph's edges), instead of stopping while they work on.
+    # A robot with nothing else left heads for the regions teammates are heading for, along
+    # the places they left (the region graph's edges), instead of stopping while they work on.
     pereira_transit: bool = _p(True, 'bool', None, None,
-                               "with nothing else left, drive towards regions teammates still explore, along "
+                               "with nothing else left, drive towards regions teammates are heading for, along "
                                "their places")
     pereira_transit_new_m: float = _p(3.0, 'm', 0.1, 100.0,
                                       "... to teammates' places at least this far from every place of the robot's own")
