@@ -51,24 +51,32 @@ Not yet, or not as the spec says:
   (RegionGraph.label), which can reach through a wall no gate marks;
 - goal persistence (A18) is the shared choice's (keep the target unless another of no worse
   rank costs under 0.8 of it), not 1.25 x U;
+- waypoints in regions no claim covers are dropped where what they promise was in view of
+  the teammates' places (pereira_team_view: fewer than pereira_revive_left_bit unseen once
+  a LiDAR at every teammate's place counts as having seen): A2's claims come late, and a
+  region several robots explored in parts may never be claimed by any;
+- a robot with nothing else worth heading for while teammates explore keeps the waypoint
+  on its shortest way (along the places' edges) to a region a teammate's intent heads for
+  (pereira_transit), mapping its way through claimed regions, instead of stopping;
 - the end-game safety net (the spec's, once every teammate is done) also serves a robot
-  with nothing else left while teammates explore: it takes back rich waypoints
-  (pereira_revive_min_bit) in claimed regions that no teammate left a place within
-  revive_clear_m of and that keep pereira_revive_left_bit once the view from every
+  with nothing else left and no such way while teammates explore: it takes back rich
+  waypoints (pereira_revive_min_bit) in claimed regions that no teammate left a place
+  within revive_clear_m of and that keep pereira_revive_left_bit once the view from every
   teammate's place (not only the claimants') counts as seen; beyond the window only once
   every teammate is done. A robot that has already stopped is woken only by a retraction;
 - a robot that stops claims every region it has mapped whole (its places all known, none of
   the frontiers it leaves in it, no teammate's claim on it), beyond A2's window;
-- robots share no maps (as in the paper): a robot whose every frontier lies in regions
-  teammates claimed, with nothing worth taking back, stops, so one robot can still end up
-  exploring much longer than the rest (maze_a: see the README's "Pereira et al." section);
+- robots share no maps (as in the paper): what a waypoint promises is counted through the
+  unknown beyond the robot's own map, so the last robot exploring still takes back
+  waypoints whose promise is the far rim of their reach, out of every teammate place's
+  range (maze_a: see the README's "Pereira et al." sections);
 - a done robot sends one done intent, not one every 30 s (the heartbeat says done);
 - pushes are cancelled when the record is overheard only while they wait in the scheme's
   outbox (at most PUSH_BACKLOG on the link), there is no LinkLayer.cancel;
 - the oracle's region map is not loaded on a real robot (host_tools/robot_config has no
   file for it yet): only missions (`lorascout run`, `sweep`) hand it over;
-- routing over the region graph (it routes on its own places like the no-sharing
-  baseline), the pereira-grid variant, the region overlay as filled areas, a numba fold,
+- paths over the region graph (a transit is chosen along the places' edges, but driven on
+  the robot's own map and places, like the no-sharing baseline's), the pereira-grid variant, the region overlay as filled areas, a numba fold,
   and the acceptance grid (10 seeds, four maps, two links, ranges, loss);
 - a finished robot no longer judges regions, so a region it claimed that grows a
   teammate's place (its signature changes) is never claimed again, and the teammate
