@@ -137,6 +137,16 @@ class MapLayers:
     standing: np.ndarray       # int8: index into kernels.SUBCELL_OFFSETS of the cell's best point
 
 
+def grid_cells_of(xy: np.ndarray, row0: int, col0: int, shape: tuple[int, ...],
+                  resolution_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cells (rows of i, j) of world points (rows of x, y) on a grid whose cell (0, 0) is the
+    global cell (row0, col0), and which of them lie on the grid's shape."""
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    ij = np.stack([np.floor(xy[:, 1] / resolution_m).astype(np.int64) - row0,
+                   np.floor(xy[:, 0] / resolution_m).astype(np.int64) - col0], axis=1)
+    return ij, (ij >= 0).all(axis=1) & (ij[:, 0] < shape[0]) & (ij[:, 1] < shape[1])
+
+
 def close_wall_gaps(state: np.ndarray) -> np.ndarray:
     """Unknown cells touching a wall cell count as wall for line of sight. Far walls are hit
     by beams more than a cell apart, so their occupied cells have unknown gaps; rays slipping
@@ -223,11 +233,7 @@ class LocalMap:
     def cells_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Window cells (rows of i, j) of world points (rows of x, y), and which of them
         are inside the window."""
-        xy = np.asarray(xy, np.float64).reshape(-1, 2)
-        res = self.p.resolution_m
-        ij = np.stack([np.floor(xy[:, 1] / res).astype(np.int64) - self.row0,
-                       np.floor(xy[:, 0] / res).astype(np.int64) - self.col0], axis=1)
-        return ij, (ij >= 0).all(axis=1) & (ij < self.n).all(axis=1)
+        return grid_cells_of(xy, self.row0, self.col0, (self.n, self.n), self.p.resolution_m)
 
     def contains(self, x_m: float, y_m: float, margin_cells: int = 0) -> bool:
         i, j = self.cell_of(x_m, y_m)

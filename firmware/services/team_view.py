@@ -12,20 +12,21 @@ import numpy as np
 
 from firmware import kernels
 from firmware.params import ExplorationParams
-from firmware.services.local_map import LocalMap
+from firmware.services.local_map import grid_cells_of
 
 
-def unseen_after_team_view_bit(local_map: LocalMap, sight: np.ndarray, waypoints_xy: np.ndarray,
+def unseen_after_team_view_bit(sight: np.ndarray, row0: int, col0: int, waypoints_xy: np.ndarray,
                                places_xy: np.ndarray, params: ExplorationParams) -> np.ndarray:
-    """Per waypoint (rows of x, y in metres, all inside the window): the unknown it would
-    show (observable_unknown over info_rays within d_cam_m), in bits, with the cells that
-    team_view_rays cast from the teammates' places (rows of x, y) reach marked as seen. Rays
-    stop at walls the window shows and pass through its unknown cells."""
+    """Per waypoint (rows of x, y in metres, all on the grid): the unknown it would show
+    (observable_unknown over info_rays within d_cam_m), in bits, with the cells that
+    team_view_rays cast from the teammates' places (rows of x, y) reach marked as seen. The
+    grid is a sight layer (the window's, LocalMap.layers) whose cell (0, 0) is the global
+    cell (row0, col0). Rays stop at walls it shows and pass through its unknown cells."""
     p = params
     wxy = np.asarray(waypoints_xy, np.float64).reshape(-1, 2)
     if not len(wxy):
         return np.zeros(0)
-    w_ij, _inside = local_map.cells_of(wxy)
+    w_ij, _inside = grid_cells_of(wxy, row0, col0, sight.shape, p.resolution_m)
     # Contiguous, as the kernels were compiled for at warm-up (a column view would compile anew).
     wi, wj = np.ascontiguousarray(w_ij[:, 0]), np.ascontiguousarray(w_ij[:, 1])
     reach_cells = p.d_cam_m / p.resolution_m
@@ -39,9 +40,10 @@ def unseen_after_team_view_bit(local_map: LocalMap, sight: np.ndarray, waypoints
     if len(pxy):
         d2 = ((pxy[:, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
         pxy = pxy[d2 <= (2.0 * p.d_cam_m + 1.0) ** 2]
-    ij, inside = local_map.cells_of(pxy)
+    ij, inside = grid_cells_of(pxy, row0, col0, sight.shape, p.resolution_m)
     seen = np.zeros(sight.shape, bool)
     kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], p.team_view_rays, reach_cells, counted, seen)
     team_sight = sight.copy()
     team_sight[seen] = kernels.SEEN_BY_TEAM
     return kernels.observable_unknown(team_sight, wi, wj, p.info_rays, reach_cells) * p.entropy_per_cell_bit
+

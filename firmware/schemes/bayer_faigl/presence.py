@@ -187,7 +187,8 @@ class PresenceRule:
         dropped = [w for w, d in zip(items, out_dropped) if d]
         if is_reported.any():
             reported = [w for w, r in zip(items, is_reported) if r]
-            unseen_bit = unseen_after_team_view_bit(self.s.local_map, sight, wxy[is_reported], xy[others], p)
+            lm = self.s.local_map
+            unseen_bit = unseen_after_team_view_bit(sight, lm.row0, lm.col0, wxy[is_reported], xy[others], p)
             for w, left in zip(reported, unseen_bit):
                 (keep if left >= p.presence_keep_bit else dropped).append(w)
         return keep, dropped

@@ -49,6 +49,7 @@ from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_M
                                               serial_newer, typed, values_of)
 from firmware.schemes.pereira.regions import RegionGraph
 from firmware.schemes.pereira.store import Store
+from firmware.services.local_map import grid_cells_of
 from firmware.services.pose import TravelMilestones
 from firmware.services.team_view import unseen_after_team_view_bit
 from hal.samples import OdometrySample
@@ -403,7 +404,8 @@ class Pereira(Scheme):
         ask = np.flatnonzero(inside & near & ~np.array(claimed, bool))
         ask = np.array([k for k in ask.tolist() if (items[k].x_m, items[k].y_m) != held], np.int64)
         if len(ask):
-            left_bit = unseen_after_team_view_bit(self.s.local_map, sight, xy[ask], theirs, p)
+            lm = self.s.local_map
+            left_bit = unseen_after_team_view_bit(sight, lm.row0, lm.col0, xy[ask], theirs, p)
             for k, bits in zip(ask.tolist(), left_bit.tolist()):
                 out[k] = bits < p.pereira_revive_left_bit
         return out
@@ -473,14 +475,15 @@ class Pereira(Scheme):
         there is nothing to cast against, and only a robot with no teammate exploring takes
         a waypoint back there."""
         p = self.s.params
+        lm = self.s.local_map
         rich = [w.e_bit >= p.pereira_revive_min_bit and not self._teammate_stood_near(graph, w) for w in items]
         xy = np.array([(w.x_m, w.y_m) for w in items], np.float64).reshape(-1, 2)
-        _ij, inside = self.s.local_map.cells_of(xy)
+        _ij, inside = lm.cells_of(xy)
         out = [r and alone and not i for r, i in zip(rich, inside.tolist())]
         ask = np.nonzero(np.array(rich) & inside)[0]
         if len(ask):
             theirs = graph.places[graph.places[:, 2] != self.s.robot_id, :2] / 10.0
-            left_bit = unseen_after_team_view_bit(self.s.local_map, sight, xy[ask], theirs, p)
+            left_bit = unseen_after_team_view_bit(sight, lm.row0, lm.col0, xy[ask], theirs, p)
             for k, bits in zip(ask.tolist(), left_bit.tolist()):
                 out[k] = bits >= p.pereira_revive_left_bit
         return out
@@ -602,11 +605,8 @@ class Pereira(Scheme):
         for k, reg in enumerate(graph.regions):
             if reg.virtual or k in left or k in others:
                 continue
-            xy = graph.places[list(reg.places), :2] / 10.0
-            i = np.floor(xy[:, 1] / res).astype(np.int64) - row0
-            j = np.floor(xy[:, 0] / res).astype(np.int64) - col0
-            if not ((i >= 0) & (i < state.shape[0]) & (j >= 0) & (j < state.shape[1])).all() \
-                    or (state[i, j] == kernels.UNKNOWN).any():
+            ij, on_grid = grid_cells_of(graph.places[list(reg.places), :2] / 10.0, row0, col0, state.shape, res)
+            if not on_grid.all() or (state[ij[:, 0], ij[:, 1]] == kernels.UNKNOWN).any():
                 continue
             said = (reg.anchor_x_dm, reg.anchor_y_dm, reg.signature, 1)
             if self._claimed.get(reg.id) != said:
