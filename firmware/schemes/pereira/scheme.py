@@ -412,12 +412,13 @@ class Pereira(Scheme):
 
     def _transit(self, graph: RegionGraph, items: list, x_m: float, y_m: float, now_us: int):
         """Of these waypoints (all in regions teammates claimed), the one worth heading for on
-        the shortest way to a region teammates are exploring: the distance to the waypoint,
-        then from it to a place near it and along the places' edges (teammates drove them, or their maps
-        certified them free) to a teammate's place in such a region that this robot has not
-        been near. None if no such place is left or none is joined to these waypoints. The
-        robot then maps its way through claimed regions, whose waypoints it leaves to the
-        team once there are others, instead of stopping while its teammates work on."""
+        the shortest way to a region teammates are heading for: the distance to the
+        waypoint, then from it to a place near it and along the places' edges (teammates
+        drove them, or their maps certified them free) to a teammate's place in such a
+        region that this robot has not been near. None if no such place is left or none is
+        joined to these waypoints. The robot then maps its way through claimed regions,
+        whose waypoints it leaves to the team once there are others, instead of stopping
+        while its teammates work on."""
         to_work_dm = self._distance_to_work_dm(graph, now_us)
         if to_work_dm is None:
             return None
