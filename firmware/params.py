@@ -225,6 +225,14 @@ class ExplorationParams:
     pereira_gate_period_s: float = _p(2.0, 's', 0.1, 3600.0, "gates are looked for in the robot's map this often")
     pereira_widening_kappa: float = _p(0.5, '1', 0.0, 10.0,
                                        'a gate needs free space (1 + this) times its clearance wide beyond it')
+    # The spec's end-game safety net, off by default: with transit and the teammates' view no
+    # run needed it (five robots on maze_a and the cave, two and three on the eight-region
+    # map: coverage >= 0.996 without), and on maze_a the last robot exploring drove on for
+    # minutes taking back waypoints whose promise was the far rim of its own map (p_max
+    # 539 m with it, 333 m without; docs/pereira/transit-5651009/).
+    pereira_take_back: bool = _p(False, 'bool', None, None,
+                                 "a robot with nothing else left takes back waypoints in regions others claimed "
+                                 "that their places could not have seen")
     pereira_revive_min_bit: float = _p(4000.0, 'bit', 0.0, 1e9,
                                        "waypoints this rich in regions others claimed are taken back by a robot "
                                        "with nothing else left and no teammate's region to head for, or with no "

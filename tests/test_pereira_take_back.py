@@ -1,6 +1,7 @@
-"""Pereira's end-game net (Pereira.filter_waypoints): waypoints in a region a teammate
-claimed explored are left to it, unless this robot has nothing else left, or no teammate
-explores, and what they promise is still unseen from every teammate's place.
+"""Pereira's planning stage (Pereira.filter_waypoints): waypoints in a region a teammate
+claimed explored are left to it; waypoints the teammates' places saw are dropped; a robot
+with nothing else left heads for a region a teammate heads for (transit), and with
+pereira_take_back takes back what is still unseen from every teammate's place.
 
 The map: a corridor y in [19, 21] m from x = 5 to 35 m, walls along both sides, unknown
 beyond x = 35 m (the open end). Teammate 1 drove the corridor's west part and claims its
@@ -75,14 +76,23 @@ def _filter(rig: PlannerRig, *waypoints: tuple[float, ...]) -> list[tuple[float,
     return [(w.x_m, w.y_m) for w in rig.waypoints.items]
 
 
+TAKING_BACK = dataclasses.replace(P, pereira_take_back=True)
+
+
 def test_a_robot_with_nothing_else_takes_back_what_no_teammate_could_have_seen():
-    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True)
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True, params=TAKING_BACK)
     assert _filter(rig, AT_THE_END) == [AT_THE_END]
     assert rig.stat("waypoints_taken_back") == 1
 
 
-def test_while_it_has_its_own_waypoints_it_leaves_the_claimed_region_to_the_team():
+def test_no_take_back_by_default():
     rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True)
+    assert _filter(rig, AT_THE_END) == []
+    assert rig.stat("waypoints_taken_back") == 0 and rig.stat("waypoints_left_to_team") == 1
+
+
+def test_while_it_has_its_own_waypoints_it_leaves_the_claimed_region_to_the_team():
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True, params=TAKING_BACK)
     assert _filter(rig, AT_THE_END, FAR_AWAY) == [FAR_AWAY]
     assert rig.stat("waypoints_left_to_team") == 1 and rig.stat("waypoints_taken_back") == 0
 
@@ -90,9 +100,9 @@ def test_while_it_has_its_own_waypoints_it_leaves_the_claimed_region_to_the_team
 def test_what_a_teammates_place_had_in_view_stays_left_to_it():
     """A place 4 m on, out in what this robot has not seen (beyond revive_clear_m of the
     waypoint): its LiDAR saw nearly all the waypoint promises."""
-    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], teammate_active=True)
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], teammate_active=True, params=TAKING_BACK)
     assert _filter(rig, AT_THE_END) == []
-    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], teammate_active=False)
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0, 38.0], teammate_active=False, params=TAKING_BACK)
     assert _filter(rig, AT_THE_END) == []
 
 

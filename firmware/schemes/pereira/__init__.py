@@ -58,18 +58,19 @@ Not yet, or not as the spec says:
 - a robot with nothing else worth heading for while teammates explore keeps the waypoint
   on its shortest way (along the places' edges) to a region a teammate's intent heads for
   (pereira_transit), mapping its way through claimed regions, instead of stopping;
-- the end-game safety net (the spec's, once every teammate is done) also serves a robot
-  with nothing else left and no such way while teammates explore: it takes back rich
-  waypoints (pereira_revive_min_bit) in claimed regions that no teammate left a place
+- the end-game safety net (the spec's, once every teammate is done) is off by default
+  (pereira_take_back): no run of the grids needed it once transit and the teammates' view
+  were in, and on maze_a it doubled p_max. With it on, it also serves a robot with nothing
+  else left and no such way while teammates explore: it takes back rich waypoints (pereira_revive_min_bit) in claimed regions that no teammate left a place
   within revive_clear_m of and that keep pereira_revive_left_bit once the view from every
   teammate's place (not only the claimants') counts as seen; beyond the window only once
   every teammate is done. A robot that has already stopped is woken only by a retraction;
 - a robot that stops claims every region it has mapped whole (its places all known, none of
   the frontiers it leaves in it, no teammate's claim on it), beyond A2's window;
 - robots share no maps (as in the paper): what a waypoint promises is counted through the
-  unknown beyond the robot's own map, so the last robot exploring still takes back
-  waypoints whose promise is the far rim of their reach, out of every teammate place's
-  range (maze_a: see the README's "Pereira et al." sections);
+  unknown beyond the robot's own map, so with pereira_take_back the last robot exploring
+  takes back waypoints whose promise is the far rim of their reach, out of every teammate
+  place's range (maze_a: see the README's "Pereira et al." sections);
 - a done robot sends one done intent, not one every 30 s (the heartbeat says done);
 - pushes are cancelled when the record is overheard only while they wait in the scheme's
   outbox (at most PUSH_BACKLOG on the link), there is no LinkLayer.cancel;

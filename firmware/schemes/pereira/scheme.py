@@ -341,9 +341,9 @@ class Pereira(Scheme):
         A6); the others are dropped where the teammates' places saw what they promise
         (_seen_by_team). A robot with nothing else worth heading for, while teammates
         explore, keeps the one on its way to a region a teammate is heading for (_transit);
-        with none, or with no teammate exploring any more, it takes back those worth it
-        (_worth_taking_back; the spec's end-game safety net: a claim made for the region as
-        its claimant knew it must not leave a hole)."""
+        with none, or with no teammate exploring any more, and pereira_take_back, it takes
+        back those worth it (_worth_taking_back; the spec's end-game safety net: a claim
+        made for the region as its claimant knew it must not leave a hole)."""
         items = self.s.waypoints.items
         if not items:
             return
@@ -365,8 +365,8 @@ class Pereira(Scheme):
         if left and not alone and self.s.params.pereira_transit and \
                 not self.s.waypoints.worth_heading_for(view.x_m, view.y_m, among=own):
             transit = self._transit(graph, left, view.x_m, view.y_m, view.now_us)
-        back = iter(self._worth_taking_back(graph, view.sight, left, alone)
-                    if left and transit is None and (alone or all(claimed)) else [False] * len(left))
+        take_back = self.s.params.pereira_take_back and left and transit is None and (alone or all(claimed))
+        back = iter(self._worth_taking_back(graph, view.sight, left, alone) if take_back else [False] * len(left))
         kept = []
         for w, r, c, sn in zip(items, labels, claimed, seen):
             if sn:
