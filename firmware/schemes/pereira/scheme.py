@@ -129,6 +129,7 @@ class Pereira(Scheme):
         self._category: dict[tuple[float, float], int] = {}  # this cycle's candidates' categories
         self._sight: np.ndarray | None = None
         self._grid: tuple | None = None                      # graph, cycle time, row0, col0, label grid
+        self._theirs: tuple | None = None                    # graph, teammates' places (m), their k-d tree
         self._xy = (0.0, 0.0)                                # the robot's position at the last plan
         self._view_key: tuple | None = None
         self._explored_others: set[int] = set()
@@ -393,14 +394,14 @@ class Pereira(Scheme):
         out = [False] * len(items)
         if not p.pereira_team_view:
             return out
-        theirs = graph.places[graph.places[:, 2] != self.s.robot_id, :2] / 10.0
+        theirs, tree = self._teammates_places(graph)
         if not len(theirs):
             return out
         t = self.s.current_target()
         held = None if t is None else (t.x_m, t.y_m)
         xy = np.array([(w.x_m, w.y_m) for w in items], np.float64).reshape(-1, 2)
         _ij, inside = self.s.local_map.cells_of(xy)
-        near = cKDTree(theirs).query(xy, distance_upper_bound=p.d_cam_m)[0] < math.inf
+        near = tree.query(xy, distance_upper_bound=p.d_cam_m)[0] < math.inf
         ask = np.flatnonzero(inside & near & ~np.array(claimed, bool))
         ask = np.array([k for k in ask.tolist() if (items[k].x_m, items[k].y_m) != held], np.int64)
         if len(ask):
@@ -409,6 +410,16 @@ class Pereira(Scheme):
             for k, bits in zip(ask.tolist(), left_bit.tolist()):
                 out[k] = bits < p.pereira_revive_left_bit
         return out
+
+    def _teammates_places(self, graph: RegionGraph) -> tuple[np.ndarray, cKDTree | None]:
+        """The teammates' places in this graph (rows of x, y in metres) and their k-d tree
+        (None if there are none), kept while the graph is the same: the planning stage asks
+        every cycle, and the graph changes only when records arrive."""
+        held = self._theirs
+        if held is None or held[0] is not graph:
+            theirs = graph.places[graph.places[:, 2] != self.s.robot_id, :2] / 10.0
+            held = self._theirs = (graph, theirs, cKDTree(theirs) if len(theirs) else None)
+        return held[1], held[2]
 
     def _transit(self, graph: RegionGraph, items: list, x_m: float, y_m: float, now_us: int):
         """Of these waypoints (all in regions teammates claimed), the one worth heading for on
@@ -483,7 +494,7 @@ class Pereira(Scheme):
         out = [r and alone and not i for r, i in zip(rich, inside.tolist())]
         ask = np.nonzero(np.array(rich) & inside)[0]
         if len(ask):
-            theirs = graph.places[graph.places[:, 2] != self.s.robot_id, :2] / 10.0
+            theirs, _tree = self._teammates_places(graph)
             left_bit = unseen_after_team_view_bit(sight, lm.row0, lm.col0, xy[ask], theirs, p)
             for k, bits in zip(ask.tolist(), left_bit.tolist()):
                 out[k] = bits >= p.pereira_revive_left_bit
