@@ -70,10 +70,9 @@ class Holdings:
         `at_most` records held after its entry. An origin missing from a summary with free
         slots is one the sender holds nothing of; from a full one, unknown.
 
-        held_since: an earlier snapshot(); only records held then are pushed. A summary
-        waits for its sender's slot and is seconds old when heard, so records the whole
-        team heard from their origin since would look lacking: 5 robots on maze_a over
-        eu868-g3 pushed 3800 records that way with no frame lost."""
+        held_since: an earlier snapshot(); only records held then are pushed (the scheme
+        passes the one taken when the same sender's previous summary came: records heard
+        since may still be on their way to it, or in a summary composed before it heard them)."""
         theirs = dict(entries)
         full = len(entries) >= SUMMARY_SLOTS
         out: list[HeldRecord] = []

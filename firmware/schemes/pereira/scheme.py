@@ -135,7 +135,7 @@ class Pereira(Scheme):
         self._explored_others: set[int] = set()
         self._outbox: dict[tuple[int, int], tuple[str, Place | Gate | Claim]] = {}
         self._summary_turn = 0
-        self._held_at_summary: dict[int, int] = {}          # what was held when this robot last summarised
+        self._held_at_heard: dict[int, dict[int, int]] = {}  # teammate -> what was held when its last summary came
         # teammate -> (upto of this robot's records its last summary gave, when heard)
         self._mine_held_by: dict[int, tuple[int, int]] = {}
         self._left_labels: set[int | None] = set()           # regions of waypoints left to the team this cycle
@@ -233,8 +233,13 @@ class Pereira(Scheme):
             said = dict(s.entries)
             if me in said or len(s.entries) < SUMMARY_SLOTS:    # a full summary may leave this robot out
                 self._mine_held_by[s.sender_id] = (said.get(me, 0), now_us)
-            for name, record in self.holdings.to_push(s.sender_id, s.entries, self._push_max,
-                                                      self._held_at_summary):
+            # Only records held when this teammate's previous summary came are pushed: a
+            # summary waits for its sender's slot and is seconds old when heard, so records
+            # the whole team heard from their origin since would look lacking. A summary
+            # period later they no longer do unless the teammate really lost them.
+            held_then = self._held_at_heard.get(s.sender_id, {})
+            self._held_at_heard[s.sender_id] = self.holdings.snapshot()
+            for name, record in self.holdings.to_push(s.sender_id, s.entries, self._push_max, held_then):
                 self._outbox.setdefault((record.sender_id, record.oseq), (name, record))
             return
         record = typed(rtype, values)
@@ -250,7 +255,6 @@ class Pereira(Scheme):
         if self.s.send is None or self._push_max == 0:
             return
         entries = self.holdings.summary_entries(self._summary_turn)
-        self._held_at_summary = self.holdings.snapshot()
         self._summary_turn += 1
         self.s.send("summary", values_of(Summary(self.s.robot_id, entries)), PRIORITY_INFO, key="summary")
         self.counts["summaries_sent"] += 1
@@ -563,7 +567,9 @@ class Pereira(Scheme):
         """A2: a region is explored for this robot when all its places lie known in the
         window and none of its waypoints is in it, on pereira_explored_cycles cycles in a
         row; a claim says so, and a retraction follows when one of its waypoints appears
-        there again. A claim is re-issued when the region's anchor or signature changes."""
+        there again. A claim is re-issued when the region's anchor or signature changes, and none
+        is sent while a teammate's claim on the same region is effective (it names the same
+        places and gates: a second one would tell no one anything)."""
         p = self.s.params
         graph = self.store.graph()
         lm, sight = self.s.local_map, self._sight
@@ -587,7 +593,10 @@ class Pereira(Scheme):
             if clean[reg.id] >= p.pereira_explored_cycles:
                 explored_now.append(k)
         self._clean = clean
+        others = self._explored_by_others()
         for k in explored_now:
+            if k in others:
+                continue      # a teammate's claim says it already, for the same places and gates
             reg = graph.regions[k]
             said = (reg.anchor_x_dm, reg.anchor_y_dm, reg.signature, 1)
             if self._claimed.get(reg.id) != said:
