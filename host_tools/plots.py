@@ -65,6 +65,12 @@ def plot_mission(result, path: Path) -> None:
         if result.config.frames == "own" and i < len(result.start_poses):
             # Each robot draws in its own frame: the host alone knows where that lies (its start pose).
             xy, segments = _to_world(xy, result.start_poses[i]), _to_world(segments, result.start_poses[i])
+        if "regions" in geometry:
+            # A partition every robot derives alike from the records it holds: the first
+            # robot's stands for the team's (the report's scheme digests say whether they agree).
+            if i == 0:
+                _draw_regions(ax, xy, segments, np.asarray(geometry["regions"]), geometry.get("what", "points"))
+            continue
         ax.add_collection(LineCollection(segments, colors=[c], linewidths=0.5, alpha=0.6))
         if len(xy):
             ax.scatter(xy[:, 0], xy[:, 1], s=4, color=c, label=f"robot {i}: {len(xy)} {geometry.get('what', 'points')}")
@@ -76,6 +82,17 @@ def plot_mission(result, path: Path) -> None:
     _legend(ax, len(result.agents), 8)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _draw_regions(ax, xy: np.ndarray, segments: np.ndarray, regions: np.ndarray, what: str) -> None:
+    """Points coloured by the region they belong to (colours cycle), the cuts between
+    regions as black segments."""
+    tab20 = np.asarray(plt.get_cmap("tab20").colors)
+    palette = np.concatenate([tab20[0::2], tab20[1::2]])     # dark hues first: neighbours' colours differ more
+    ax.add_collection(LineCollection(segments, colors="black", linewidths=1.5))
+    if len(xy):
+        ax.scatter(xy[:, 0], xy[:, 1], s=6, c=palette[regions % len(palette)],
+                   label=f"robot 0: {len(xy)} {what} in {len(np.unique(regions))} regions")
 
 
 def _to_world(xy: np.ndarray, pose) -> np.ndarray:

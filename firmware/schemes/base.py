@@ -215,7 +215,8 @@ class Scheme(ABC):
     def drawables(self) -> dict[str, Any]:
         """Geometry for plots: any of
         "points" (N x 2 m), "segments" (M x 2 x 2 m), "highlight" (bool per point),
-        "title" (what they are), "what" (what one point is, for the legend)."""
+        "title" (what they are), "what" (what one point is, for the legend), "regions" (an
+        int per point: a partition the team shares, drawn by colour, the first robot's alone)."""
         return {}
 
 
