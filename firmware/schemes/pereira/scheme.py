@@ -664,10 +664,8 @@ class Pereira(Scheme):
 
     def _send_intent(self, state: int, category: int, gx: float, gy: float, dist_m: float, force: bool,
                      now_us: int) -> None:
-        """The intent (h, p^r, p^g of the paper's message) when the goal moved or the state
-        changed, or every pereira_intent_period_s. The category rides along for inspection;
-        no receiver uses it (eq. 3 needs the goal and its distance), so its changes alone,
-        a third of the intents on a cave, are not sent."""
+        """The intent (h, p^r, p^g of the paper's message) when the goal moved, its category
+        or the state changed, or every pereira_intent_period_s."""
         p = self.s.params
         if self.s.send is None:
             return
@@ -675,7 +673,7 @@ class Pereira(Scheme):
         said = self._said_intent
         moved = said is None or math.hypot(gx - said[2] / 10.0, gy - said[3] / 10.0) >= p.pereira_intent_move_m
         due = said is None or now_us - self._said_intent_us >= p.pereira_intent_period_s * 1e6
-        if not (force or due or moved or state != said[0]):
+        if not (force or due or moved or (state, category) != said[:2]):
             return
         self._iseq = (self._iseq + 1) % 256
         it = Intent(self.s.robot_id, dm(x), dm(y), dm(gx), dm(gy), min(GOAL_DIST_MAX_DM, int(round(dist_m * 10))),
@@ -700,6 +698,9 @@ class Pereira(Scheme):
     def drawables(self) -> dict:
         graph = self.store.graph()
         xy = graph.places[:, :2] / 10.0 if len(graph.places) else np.zeros((0, 2))
+        explored = self._explored_by_others() | {graph.region_index(rid) for rid, c in self._my_claims(graph).items()
+                                                 if c.explored}
+        marked = np.array([int(r) in explored for r in graph.region_of_place], bool)
         segs = graph.segments_cm.reshape(-1, 2, 2) / 100.0 if len(graph.segments_cm) else np.zeros((0, 2, 2))
-        return {"title": "Pereira: the region graph robot 0 derived (places coloured by region, gates black)",
-                "points": xy, "segments": segs, "regions": graph.region_of_place, "what": "places"}
+        return {"title": "Pereira regions: places, gates (red rings: places in regions explored)",
+                "points": xy, "segments": segs, "highlight": marked, "what": "places"}
