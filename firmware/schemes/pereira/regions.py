@@ -52,7 +52,7 @@ from scipy.spatial import cKDTree
 
 from firmware.comms.schema import crc16
 from firmware.schemes.pereira.params import PARAMS, PereiraParams
-from firmware.schemes.pereira.records import DIR_CODES, OSEQ_BITS, Gate, Place
+from firmware.schemes.pereira.records import DIR_CODES, Gate, Place
 
 # ---- integer geometry -------------------------------------------------------------------
 
@@ -141,7 +141,6 @@ class Region:
     virtual: bool
     places: tuple[int, ...]      # indices into RegionGraph.places (empty for a virtual region)
     gate_signature: int = 0      # signature_of(its gates): what a claim of the virtual region it was names
-    gate_keys: tuple[tuple[int, int, int], ...] = ()   # a real region's gates, sorted (its signature's first part)
 
     @property
     def visited(self) -> bool:
@@ -204,20 +203,6 @@ class RegionGraph:
         h.update(repr(self.regions).encode())
         h.update(repr(self.adjacency).encode())
         return h.hexdigest()
-
-    def claim_signature(self, k: int, origin: int, oseq: int) -> int:
-        """The signature a claim of real region k by `origin`, counter `oseq`, must name to
-        hold: the region's, without the places `origin` added after the claim (their oseq
-        newer, RFC 1982). Its own later places are its travel through a region it had
-        judged explored; re-claiming at each one cost a claim per metre. Anyone else's new
-        place still outdates the claim: the region grew beyond what the claimant saw."""
-        reg = self.regions[k]
-        rows = self.places[list(reg.places)]
-        d = (rows[:, 3] - int(oseq)) % (1 << OSEQ_BITS)
-        later = (rows[:, 2] == int(origin)) & (d > 0) & (d < (1 << (OSEQ_BITS - 1)))
-        if not later.any():
-            return reg.signature
-        return region_signature(reg.gate_keys, [tuple(int(v) for v in row[:4]) for row in rows[~later]])
 
     # ---- claim resolution (5.3) ----
     def resolve(self, x_dm: int, y_dm: int) -> int | None:
@@ -516,7 +501,7 @@ def fold(places: Iterable[Place | tuple[int, ...]], gates: Iterable[Gate | tuple
         pk = [place_keys[i] for i in members[r]]
         regions.append(Region((REAL, int(pl[a, 0]), int(pl[a, 1]), int(pl[a, 2]), int(pl[a, 3])),
                               int(pl[a, 0]), int(pl[a, 1]), region_signature(gk, pk), False,
-                              tuple(members[r]), signature_of(gk), tuple(sorted(gk))))
+                              tuple(members[r]), signature_of(gk)))
 
     # Virtual regions behind gates with places on one side only.
     virtual: list[tuple[tuple[int, ...], int, int, int]] = []   # (id, anchor x, anchor y, adjacent real region)

@@ -48,7 +48,6 @@ from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_M
                                               SUMMARY_SLOTS, Claim, Gate, Intent, Place, Summary, dm, encode,
                                               serial_newer, typed, values_of)
 from firmware.schemes.pereira.regions import RegionGraph
-from firmware.schemes.pereira.status import holds
 from firmware.schemes.pereira.store import Store
 from firmware.services.local_map import grid_cells_of
 from firmware.services.pose import TravelMilestones
@@ -125,8 +124,7 @@ class Pereira(Scheme):
         self._iseq = 0
         self._said_intent: tuple[int, int, int, int] | None = None   # state, category, goal x dm, goal y dm
         self._said_intent_us = 0
-        self._claimed: dict[tuple[int, ...], Claim] = {}     # region id -> this robot's latest claim of it (_my_claims)
-        self._claimed_key: tuple[int, int] | None = None
+        self._claimed: dict[tuple[int, ...], tuple[int, int, int, int]] = {}   # region id -> anchor x, y, sig, explored
         self._clean: dict[tuple[int, ...], int] = {}         # region id -> cycles in a row it looked explored
         self._category: dict[tuple[float, float], int] = {}  # this cycle's candidates' categories
         self._sight: np.ndarray | None = None
@@ -466,7 +464,7 @@ class Pereira(Scheme):
         open_regions = [k for k in self._headings(graph, now_us)
                         if not graph.regions[k].virtual and k not in done_by_others
                         and self._clean.get(graph.regions[k].id, 0) < p.pereira_explored_cycles
-                        and not self._claims_explored(graph, k)]
+                        and not self._claimed.get(graph.regions[k].id, (0, 0, 0, 0))[3]]
         source = np.isin(graph.region_of_place, open_regions) & ~mine
         if mine.any() and source.any():
             gap_dm = cKDTree(pl[mine, :2].astype(np.float64)).query(pl[source, :2].astype(np.float64))[0]
@@ -569,10 +567,9 @@ class Pereira(Scheme):
         """A2: a region is explored for this robot when all its places lie known in the
         window and none of its waypoints is in it, on pereira_explored_cycles cycles in a
         row; a claim says so, and a retraction follows when one of its waypoints appears
-        there again. A claim is said again when it no longer holds (status.holds: the region's
-        gates or places changed, but for the robot's own later places), and none is sent
-        while a teammate's claim on the same region is effective (a second one would tell no
-        one anything)."""
+        there again. A claim is re-issued when the region's anchor or signature changes, and none
+        is sent while a teammate's claim on the same region is effective (it names the same
+        places and gates: a second one would tell no one anything)."""
         p = self.s.params
         graph = self.store.graph()
         lm, sight = self.s.local_map, self._sight
@@ -598,12 +595,20 @@ class Pereira(Scheme):
         self._clean = clean
         others = self._explored_by_others()
         for k in explored_now:
-            if k not in others:       # else a teammate's claim says it already
-                self._claim_explored(graph, k)
-        for rid, said in list(self._my_claims(graph).items()):
+            if k in others:
+                continue      # a teammate's claim says it already, for the same places and gates
+            reg = graph.regions[k]
+            said = (reg.anchor_x_dm, reg.anchor_y_dm, reg.signature, 1)
+            if self._claimed.get(reg.id) != said:
+                self._claim(*said)
+                self._claimed[reg.id] = said
+        for rid, (ax, ay, sig, explored) in list(self._claimed.items()):
             k = graph.region_index(rid)
-            if said.explored and k in with_waypoints and holds(graph, k, said):
-                self._claimed[rid] = self._claim(said.anchor_x_dm, said.anchor_y_dm, said.sig, 0)
+            if k is None:
+                del self._claimed[rid]        # merged away: its claims name a signature no region has
+            elif explored and k in with_waypoints and graph.regions[k].signature == sig:
+                self._claim(ax, ay, sig, 0)
+                self._claimed[rid] = (ax, ay, sig, 0)
                 self.counts["claims_retracted"] += 1
 
     def _claim_all_it_mapped(self, frontiers_left_xy: np.ndarray) -> None:
@@ -624,43 +629,14 @@ class Pereira(Scheme):
             ij, on_grid = grid_cells_of(graph.places[list(reg.places), :2] / 10.0, row0, col0, state.shape, res)
             if not on_grid.all() or (state[ij[:, 0], ij[:, 1]] == kernels.UNKNOWN).any():
                 continue
-            self.counts["claims_on_stopping"] += int(self._claim_explored(graph, k))
+            said = (reg.anchor_x_dm, reg.anchor_y_dm, reg.signature, 1)
+            if self._claimed.get(reg.id) != said:
+                self._claim(*said)
+                self._claimed[reg.id] = said
+                self.counts["claims_on_stopping"] += 1
 
-    def _my_claims(self, graph: RegionGraph) -> dict[tuple[int, ...], Claim]:
-        """Region id -> this robot's latest claim resolving to it, as a teammate resolves it
-        (by its anchor): a region's id is its smallest place key, so it changes as the
-        robot adds places, while the claim still holds."""
-        key = (id(graph), len(self.store))
-        if key != self._claimed_key:
-            mine: dict[tuple[int, ...], Claim] = {}
-            for c in self._claimed.values():
-                k = graph.resolve(c.anchor_x_dm, c.anchor_y_dm)
-                if k is None:
-                    continue
-                rid = graph.regions[k].id
-                if rid not in mine or serial_newer(c.oseq, mine[rid].oseq):
-                    mine[rid] = c
-            self._claimed, self._claimed_key = mine, key
-        return self._claimed
-
-    def _claims_explored(self, graph: RegionGraph, k: int) -> bool:
-        said = self._my_claims(graph).get(graph.regions[k].id)
-        return said is not None and bool(said.explored)
-
-    def _claim_explored(self, graph: RegionGraph, k: int) -> bool:
-        """Claim region k explored unless this robot's latest claim of it says so already
-        and still holds; True if a claim went out."""
-        reg = graph.regions[k]
-        said = self._my_claims(graph).get(reg.id)
-        if said is not None and said.explored and holds(graph, k, said):
-            return False
-        self._claimed[reg.id] = self._claim(reg.anchor_x_dm, reg.anchor_y_dm, reg.signature, 1)
-        return True
-
-    def _claim(self, ax: int, ay: int, sig: int, explored: int) -> Claim:
-        claim = Claim(self.s.robot_id, self._next_oseq(), ax, ay, sig, explored, 0)
-        self._publish("claim", claim, PRIORITY_STATUS)
-        return claim
+    def _claim(self, ax: int, ay: int, sig: int, explored: int) -> None:
+        self._publish("claim", Claim(self.s.robot_id, self._next_oseq(), ax, ay, sig, explored, 0), PRIORITY_STATUS)
 
     def _send_intent(self, state: int, category: int, gx: float, gy: float, dist_m: float, force: bool,
                      now_us: int) -> None:
@@ -698,8 +674,7 @@ class Pereira(Scheme):
     def drawables(self) -> dict:
         graph = self.store.graph()
         xy = graph.places[:, :2] / 10.0 if len(graph.places) else np.zeros((0, 2))
-        explored = self._explored_by_others() | {graph.region_index(rid) for rid, c in self._my_claims(graph).items()
-                                                 if c.explored}
+        explored = self._explored_by_others() | {graph.region_index(rid) for rid, c in self._claimed.items() if c[3]}
         marked = np.array([int(r) in explored for r in graph.region_of_place], bool)
         segs = graph.segments_cm.reshape(-1, 2, 2) / 100.0 if len(graph.segments_cm) else np.zeros((0, 2, 2))
         return {"title": "Pereira regions: places, gates (red rings: places in regions explored)",

@@ -11,10 +11,9 @@ hears B: 1, then C retracts, and A drops to 0 although B explored the region), s
   relay forwards the origin's record unchanged, with the origin's counter (A4).
 - A receiver resolves a claim's anchor to a region of its own region graph
   (RegionGraph.resolve); the claim is effective only if its signature equals that region's
-  (its gates and places, but for places its origin added after the claim; a claim with the
-  virtual bit, of a room seen through a door, its gates alone), so a claim never reaches
-  beyond the region its origin knew, and one whose gates or places the receiver lacks
-  waits (pending).
+  (its gates and places; a claim with the virtual bit, of a room seen through a door, its
+  gates alone), so a claim never reaches beyond the region its origin knew, and one whose
+  gates or places the receiver lacks waits (pending).
 - e^o_A(R) = OR over origins o != A of [o's latest claim among those resolving to R is
   effective and explored] (eq. 1 as an OR over per-origin registers). "Latest" is the
   origin's own counter in RFC 1982 order, the only order compared (no clock); so a newer
@@ -117,16 +116,6 @@ def _latest(claims: list[Claim]) -> Claim:
     return min((c for c in claims if c.oseq == newest), key=lambda c: (c.explored, c))
 
 
-def holds(graph: RegionGraph, k: int, claim: Claim) -> bool:
-    """Does this claim, resolved to region k, name it as it is (is it effective)?"""
-    reg = graph.regions[k]
-    if claim.virtual:
-        return claim.sig == reg.gate_signature
-    if reg.virtual:
-        return claim.sig == reg.signature
-    return claim.sig == graph.claim_signature(k, claim.sender_id, claim.oseq)
-
-
 def status_view(graph: RegionGraph, claims: Iterable[Claim] | ClaimSet, observer: int) -> StatusView:
     """Every region's status as robot `observer` sees it, holding `claims` and `graph`."""
     claims = claims if isinstance(claims, ClaimSet) else ClaimSet(claims)
@@ -148,7 +137,7 @@ def status_view(graph: RegionGraph, claims: Iterable[Claim] | ClaimSet, observer
     for (r, _origin), cs in sorted(groups.items()):
         c = _latest(cs)
         reg = graph.regions[r]
-        latest.setdefault(r, []).append((c, holds(graph, r, c)))
+        latest.setdefault(r, []).append((c, c.sig == (reg.gate_signature if c.virtual else reg.signature)))
     out = []
     for k, reg in enumerate(graph.regions):
         mine = tuple(latest.get(k, ()))
