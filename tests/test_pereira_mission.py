@@ -15,6 +15,7 @@ def test_a_team_finishes_a_cave_and_every_robot_holds_the_same_region_graph():
     assert all(n > 0 for n in stats["places_sent"]) and all(n > 0 for n in stats["intents_sent"])
     assert sum(stats["gates_sent"]) > 0 and sum(stats["claims_sent"]) > 0
     assert min(stats["regions"]) >= 2
+    assert sum(stats["records_pushed"]) == 0        # in range with nothing lost, no teammate lags
     stores = [a.scheme.store for a in r.agents]
     assert len({s.digest() for s in stores}) == 1
     assert len({s.graph().digest() for s in stores}) == 1
@@ -39,6 +40,7 @@ def test_records_lost_once_on_their_way_to_a_robot_still_reach_it_before_the_mis
     r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=3, seed=1, strategy="pereira", max_sim_s=900,
                                   radio="eu868-g3"), loss_rule=lose_first_copy)
     assert r.termination == "complete" and offered
+    assert sum(r.to_json()["explorer_stats"]["records_pushed"]) > 0
     stores = [a.scheme.store for a in r.agents]
     assert len({s.digest() for s in stores}) == 1
 

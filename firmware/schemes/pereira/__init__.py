@@ -71,16 +71,11 @@ Not yet, or not as the spec says:
   unknown beyond the robot's own map, so with pereira_take_back the last robot exploring
   takes back waypoints whose promise is the far rim of their reach, out of every teammate
   place's range (maze_a: see the README's "Pereira et al." sections);
-- a claim names its region's places as well as its gates, and holds through its origin's
-  own later places (RegionGraph.claim_signature): re-said at every place, a robot driving
-  on through a region it claimed sent a claim per metre; a robot sends no claim while a
-  teammate's claim on the region holds;
+- a robot sends no claim while a teammate's claim on the region holds (it would tell no
+  one anything);
 - a record is pushed to a teammate whose summary lacks it only if it was held already when
   that teammate's previous summary came: summaries are seconds old when heard, and in range
   with nothing lost the team pushed records everyone had just heard;
-- an intent goes when the goal moves (pereira_intent_move_m) or the state changes, and
-  every pereira_intent_period_s, not when only the goal's category changes: the category
-  rides along for inspection, no receiver uses it;
 - a done robot sends one done intent, not one every 30 s (the heartbeat says done);
 - pushes are cancelled when the record is overheard only while they wait in the scheme's
   outbox (at most PUSH_BACKLOG on the link), there is no LinkLayer.cancel;

@@ -73,7 +73,7 @@ CLAIM = RecordType(
         _OSEQ,
         _dm("anchor_x_dm", "x of the region's anchor in the origin's view"),
         _dm("anchor_y_dm", "y of the region's anchor in the origin's view"),
-        Field("sig", 16, unit="crc16", doc="the region's signature in the origin's view (CRC of its gate keys)"),
+        Field("sig", 16, unit="crc16", doc="the region's signature in the origin's view (CRC of its gate and place keys)"),
         Field("explored", 1, unit="bool", doc="the origin judges the region explored (0: retracted)"),
         Field("virtual", 1, unit="bool", doc="the region was a virtual one (behind a gate) for the origin"),
     ),

@@ -674,8 +674,6 @@ class Pereira(Scheme):
     def drawables(self) -> dict:
         graph = self.store.graph()
         xy = graph.places[:, :2] / 10.0 if len(graph.places) else np.zeros((0, 2))
-        explored = self._explored_by_others() | {graph.region_index(rid) for rid, c in self._claimed.items() if c[3]}
-        marked = np.array([int(r) in explored for r in graph.region_of_place], bool)
         segs = graph.segments_cm.reshape(-1, 2, 2) / 100.0 if len(graph.segments_cm) else np.zeros((0, 2, 2))
-        return {"title": "Pereira regions: places, gates (red rings: places in regions explored)",
-                "points": xy, "segments": segs, "highlight": marked, "what": "places"}
+        return {"title": "Pereira: the region graph robot 0 derived (places coloured by region, gates black)",
+                "points": xy, "segments": segs, "regions": graph.region_of_place, "what": "places"}
