@@ -567,9 +567,9 @@ class Pereira(Scheme):
         """A2: a region is explored for this robot when all its places lie known in the
         window and none of its waypoints is in it, on pereira_explored_cycles cycles in a
         row; a claim says so, and a retraction follows when one of its waypoints appears
-        there again. A claim is re-issued when the region's anchor or signature changes, and none
-        is sent while a teammate's claim on the same region is effective (it names the same
-        places and gates: a second one would tell no one anything)."""
+        there again. A claim is re-issued when the region's anchor or signature changes;
+        none is sent while a teammate's claim on the same region is effective (it names the
+        same places and gates: a second one would tell no one anything)."""
         p = self.s.params
         graph = self.store.graph()
         lm, sight = self.s.local_map, self._sight
