@@ -161,7 +161,11 @@ def detect_gates(state: np.ndarray, row0: int, col0: int, res_m: float,
 
     # Narrow enough, and observed around.
     frontier = (st == kernels.UNKNOWN) & dilate_square(free, 1)
-    d_front = ndimage.distance_transform_edt(~frontier)[gi, gj] if frontier.any() else np.full(len(gi), np.inf)
+    # (A k-d tree of the frontier cells gives the distance transform's values, sqrt of the
+    # same integers, at the few GVD cells read, for a fraction of its cost.)
+    fi, fj = np.nonzero(frontier)
+    d_front = cKDTree(np.stack([fi, fj], axis=1).astype(np.float64)).query(
+        np.stack([gi, gj], axis=1).astype(np.float64))[0] if len(fi) else np.full(len(gi), np.inf)
     idx = np.flatnonzero((2 * gc * res_m <= p.w_max_m + 1e-9) & (d_front >= gc + p.observed_margin_m / res_m))
 
     # The narrowest of the GVD around, within c_tie.

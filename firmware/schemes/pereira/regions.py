@@ -110,8 +110,22 @@ def near_segment(px, py, ax, ay, bx, by, r):
                     np.where(after, wx * wx + wy * wy <= r * r, cross * cross <= r * r * ll))
 
 
+# The keys as a signature covers them: gate (x_dm, y_dm, dir_code) and place (x_dm, y_dm,
+# sender, oseq), big-endian as on the wire.
+GATE_KEY_BYTES = np.dtype([("x", ">i2"), ("y", ">i2"), ("dir", "u1")])
+PLACE_KEY_BYTES = np.dtype([("x", ">i2"), ("y", ">i2"), ("sender", "u1"), ("oseq", ">u2")])
+
+
+def _key_rows(keys: np.ndarray, layout: np.dtype) -> np.ndarray:
+    """Rows of integer keys (the first len(layout.names) columns) as packed records."""
+    out = np.empty(len(keys), layout)
+    for c, name in enumerate(layout.names):
+        out[name] = keys[:, c]
+    return out
+
+
 def gate_key_bytes(keys: Iterable[tuple[int, int, int]]) -> bytes:
-    return b"".join(struct.pack(">hhB", x, y, d) for x, y, d in keys)
+    return _key_rows(np.array(list(keys), np.int64).reshape(-1, 3), GATE_KEY_BYTES).tobytes()
 
 
 def signature_of(keys: Iterable[tuple[int, int, int]]) -> int:
@@ -126,8 +140,8 @@ def region_signature(gate_keys: Iterable[tuple[int, int, int]], place_keys: Iter
     beyond what the claimant saw, with no new gate: the rule when every doorway is known from
     the start, as pereira:oracle's are), the claim no longer applies until its claimant
     judges the grown region again."""
-    return crc16(gate_key_bytes(sorted(gate_keys))
-                 + b"".join(struct.pack(">hhBH", x, y, o, q) for x, y, o, q in sorted(place_keys)))
+    places = _key_rows(np.array(sorted(place_keys), np.int64).reshape(-1, 4), PLACE_KEY_BYTES)
+    return crc16(gate_key_bytes(sorted(gate_keys)) + places.tobytes())
 
 
 # ---- the graph --------------------------------------------------------------------------
@@ -249,28 +263,43 @@ class RegionGraph:
         the point crosses no gate; else, seen from the nearest place, the virtual region
         beyond the gate crossed nearest the point (None if that side has no virtual region,
         or no place is near)."""
+        return self.labels(np.array([[x_dm, y_dm]], np.int64), reach_dm, nearest)[0]
+
+    def labels(self, xy_dm: np.ndarray, reach_dm: int, nearest: int = 8) -> list[int | None]:
+        """`label` of every row (x_dm, y_dm, integers) of xy_dm."""
         pl = self.places
-        if not len(pl):
-            return None
-        x_dm, y_dm = int(x_dm), int(y_dm)
-        d, idx = self._place_tree.query((x_dm, y_dm), k=min(nearest, len(pl)), distance_upper_bound=reach_dm + 0.5)
-        d, idx = np.atleast_1d(d), np.atleast_1d(idx)
-        idx = idx[np.isfinite(d)]
-        if not len(idx):
-            return None
-        px, py = pl[idx, 0] * 10, pl[idx, 1] * 10
+        xy_dm = np.asarray(xy_dm, np.int64).reshape(-1, 2)
+        if not len(pl) or not len(xy_dm):
+            return [None] * len(xy_dm)
+        k = min(nearest, len(pl))
+        d, idx = self._place_tree.query(xy_dm.astype(np.float64), k=k, distance_upper_bound=reach_dm + 0.5)
+        d, idx = d.reshape(len(xy_dm), k), idx.reshape(len(xy_dm), k)
+        found = np.isfinite(d)              # a prefix of each row: nearest first
+        idx = np.where(found, idx, 0)
         s = self.segments_cm
         if not len(s):
-            return int(self.region_of_place[idx[0]])
-        hit = crosses(px[:, None], py[:, None], x_dm * 10, y_dm * 10,
-                      s[None, :, 0], s[None, :, 1], s[None, :, 2], s[None, :, 3])
-        clear = np.flatnonzero(~hit.any(axis=1))
-        if len(clear):
-            return int(self.region_of_place[idx[clear[0]]])
-        gs = np.flatnonzero(hit[0])
+            return [int(self.region_of_place[i[0]]) if f[0] else None for i, f in zip(idx, found)]
+        x_cm, y_cm = xy_dm[:, 0, None, None] * 10, xy_dm[:, 1, None, None] * 10
+        hit = crosses(pl[idx, 0, None] * 10, pl[idx, 1, None] * 10, x_cm, y_cm,
+                      s[None, None, :, 0], s[None, None, :, 1], s[None, None, :, 2], s[None, None, :, 3])
+        clear = found & ~hit.any(axis=2)
+        first_clear = np.argmax(clear, axis=1)
+        out: list[int | None] = []
+        for q in range(len(xy_dm)):
+            if not found[q, 0]:
+                out.append(None)
+            elif clear[q, first_clear[q]]:
+                out.append(int(self.region_of_place[idx[q, first_clear[q]]]))
+            else:
+                out.append(self._beyond_gate(int(xy_dm[q, 0]), int(xy_dm[q, 1]), np.flatnonzero(hit[q, 0])))
+        return out
+
+    def _beyond_gate(self, x_dm: int, y_dm: int, gs: np.ndarray) -> int | None:
+        """The virtual region beyond the gate nearest the point among gs (ties: lowest
+        index), on the point's side; None if that side has none."""
         d2 = (self.gates[gs, 0] - x_dm) ** 2 + (self.gates[gs, 1] - y_dm) ** 2
         g = int(gs[np.lexsort((gs, d2))[0]])
-        ax, ay, bx, by = (int(v) for v in s[g])
+        ax, ay, bx, by = (int(v) for v in self.segments_cm[g])
         side = SIDE_PLUS if orient(ax, ay, bx, by, x_dm * 10, y_dm * 10) >= 0 else SIDE_MINUS
         return self.region_index((VIRTUAL, *self.gate_key(g), side))
 
@@ -326,7 +355,8 @@ class RegionGraph:
 def _sorted_unique(rows: Iterable[tuple[int, ...]], columns: tuple[int, ...]) -> np.ndarray:
     """The records as int64 rows with their fields in `columns` order, sorted
     lexicographically, duplicates dropped."""
-    a = np.array([tuple(r) for r in rows], np.int64).reshape(-1, 6)[:, list(columns)]
+    rows = list(rows)
+    a = np.fromiter(itertools.chain.from_iterable(rows), np.int64, 6 * len(rows)).reshape(-1, 6)[:, list(columns)]
     if len(a) < 2:
         return a
     a = a[np.lexsort(a.T[::-1])]
@@ -366,8 +396,9 @@ def gate_segments_cm(gates: np.ndarray, extension_cm: int) -> np.ndarray:
     return np.stack([cx - ox, cy - oy, cx + ox, cy + oy], axis=1).astype(np.int64).reshape(-1, 4)
 
 
-def _edges(pl: np.ndarray, p: PereiraParams) -> tuple[np.ndarray, np.ndarray]:
-    """Place edges (u < v, sorted) and their kinds (bit 0 trajectory, bit 1 certified)."""
+def _edges(pl: np.ndarray, tree: cKDTree | None, p: PereiraParams) -> tuple[np.ndarray, np.ndarray]:
+    """Place edges (u < v, sorted) and their kinds (bit 0 trajectory, bit 1 certified).
+    `tree`: the places' positions (dm), None if there are none."""
     n = len(pl)
     us, vs, ks = [], [], []
     # Trajectory: the sender's previous place, link_back records before.
@@ -388,7 +419,7 @@ def _edges(pl: np.ndarray, p: PereiraParams) -> tuple[np.ndarray, np.ndarray]:
     # Certified: inside the union of the two certified discs.
     if n > 1:
         r = p.d_connect_dm
-        pairs = cKDTree(pl[:, :2].astype(np.float64)).query_pairs(r + 0.5, output_type="ndarray").astype(np.int64)
+        pairs = tree.query_pairs(r + 0.5, output_type="ndarray").astype(np.int64)
         if len(pairs):
             u, v = pairs[:, 0], pairs[:, 1]
             d2 = (pl[u, 0] - pl[v, 0]) ** 2 + (pl[u, 1] - pl[v, 1]) ** 2
@@ -446,6 +477,42 @@ def _cuts(pl: np.ndarray, edges: np.ndarray, seg: np.ndarray) -> np.ndarray:
     return out[np.lexsort((out[:, 1], out[:, 0]))] if len(out) else out.reshape(0, 2)
 
 
+def _one_sided_gates(pl: np.ndarray, tree: cKDTree | None, acc: np.ndarray, seg: np.ndarray,
+                     r_cm: int) -> list[tuple[int, int, int]]:
+    """(gate, side, place) for every side of a gate with no place within r_cm of the gate's
+    segment while the other side has one: `place` is that side's nearest place to the gate's
+    centre (ties: lowest index). A point on the gate's line counts on its "+" side. `tree`:
+    the places' positions (dm); its float distances only gather candidates, with 2 cm to
+    spare, for the integer test."""
+    if not len(pl) or not len(acc):
+        return []
+    cx, cy = acc[:, 0] * 10, acc[:, 1] * 10
+    reach = np.hypot((seg[:, 2] - seg[:, 0]).astype(np.float64), (seg[:, 3] - seg[:, 1]).astype(np.float64)) / 2 \
+        + r_cm + 2.0
+    hits = tree.query_ball_point(acc[:, :2].astype(np.float64), reach / 10)
+    counts = np.fromiter((len(h) for h in hits), np.int64, len(hits))
+    g = np.repeat(np.arange(len(acc), dtype=np.int64), counts)
+    i = np.fromiter(itertools.chain.from_iterable(hits), np.int64, int(counts.sum()))
+    px, py = pl[i, 0] * 10, pl[i, 1] * 10
+    ax, ay, bx, by = seg[g, 0], seg[g, 1], seg[g, 2], seg[g, 3]
+    ok = near_segment(px - cx[g], py - cy[g], ax - cx[g], ay - cy[g], bx - cx[g], by - cy[g], r_cm)
+    side = np.where(orient(ax, ay, bx, by, px, py) >= 0, SIDE_PLUS, SIDE_MINUS)
+    d2 = (px - cx[g]) ** 2 + (py - cy[g]) ** 2
+    g, side, i, d2 = g[ok], side[ok], i[ok], d2[ok]
+    order = np.lexsort((i, d2, side, g))
+    g, side, i = g[order], side[order], i[order]
+    first = np.ones(len(g), bool)
+    first[1:] = (g[1:] != g[:-1]) | (side[1:] != side[:-1])
+    nearest = {(int(a), int(s)): int(k) for a, s, k in zip(g[first].tolist(), side[first].tolist(), i[first].tolist())}
+    out = []
+    for gate in range(len(acc)):
+        for s in (SIDE_PLUS, SIDE_MINUS):
+            other = nearest.get((gate, 1 - s))
+            if (gate, s) not in nearest and other is not None:
+                out.append((gate, s, other))
+    return out
+
+
 def fold(places: Iterable[Place | tuple[int, ...]], gates: Iterable[Gate | tuple[int, ...]],
          params: PereiraParams = PARAMS) -> RegionGraph:
     """The region graph of a set of place and gate records (any order, duplicates allowed)."""
@@ -460,7 +527,8 @@ def fold(places: Iterable[Place | tuple[int, ...]], gates: Iterable[Gate | tuple
     acc = acc[order]
     gate_of_record = rank[gate_of_record] if len(gate_of_record) else gate_of_record
     seg = gate_segments_cm(acc, p.gate_extension_cm)
-    edges, kind = _edges(pl, p)
+    tree = cKDTree(pl[:, :2].astype(np.float64)) if len(pl) else None
+    edges, kind = _edges(pl, tree, p)
     cuts = _cuts(pl, edges, seg)
     n = len(pl)
 
@@ -481,59 +549,42 @@ def fold(places: Iterable[Place | tuple[int, ...]], gates: Iterable[Gate | tuple
     else:
         region_of_place = np.zeros(0, np.int64)
     n_real = int(region_of_place.max()) + 1 if n else 0
-    members: list[list[int]] = [[] for _ in range(n_real)]
-    for i, r in enumerate(region_of_place.tolist()):
-        members[r].append(i)
-    sig_gates: list[set[int]] = [set() for _ in range(n_real)]
-    adjacency: set[tuple[int, int, int]] = set()
-    for e, g in cuts.tolist():
-        ra, rb = int(region_of_place[edges[e, 0]]), int(region_of_place[edges[e, 1]])
-        sig_gates[ra].add(g)
-        sig_gates[rb].add(g)
-        if ra != rb:
-            adjacency.add((min(ra, rb), max(ra, rb), g))
-    keys = [tuple(a) for a in acc[:, :3].tolist()]
-    place_keys = [tuple(k) for k in pl[:, :4].tolist()]
+    # Each region's places, ascending (so in key order: the places are sorted by key).
+    by_region = np.argsort(region_of_place, kind="stable")
+    ends = np.cumsum(np.bincount(region_of_place, minlength=n_real))
+    members = np.split(by_region, ends[:-1]) if n_real else []
+    # Each gate that cuts an edge at one of a region's places; adjacency through cut edges.
+    k_gates = len(acc)
+    ra = region_of_place[edges[cuts[:, 0], 0]]
+    rb = region_of_place[edges[cuts[:, 0], 1]]
+    g_cut = cuts[:, 1]
+    region_gate = np.unique(np.concatenate([ra * k_gates + g_cut, rb * k_gates + g_cut]))
+    gate_ends = np.cumsum(np.bincount(region_gate // max(k_gates, 1), minlength=n_real))
+    gates_of = np.split(region_gate % max(k_gates, 1), gate_ends[:-1]) if n_real else []
+    two = ra != rb
+    pair_gate = np.unique((np.minimum(ra, rb)[two] * n_real + np.maximum(ra, rb)[two]) * k_gates + g_cut[two])
+    adjacency = {(a // n_real, a % n_real, g) for a, g in zip((pair_gate // k_gates).tolist(),
+                                                             (pair_gate % k_gates).tolist())} if len(pair_gate) else set()
+    gate_bytes = _key_rows(acc, GATE_KEY_BYTES)
+    place_bytes = _key_rows(pl, PLACE_KEY_BYTES)
     regions = []
     for r in range(n_real):
-        a = members[r][0]
-        gk = [keys[g] for g in sig_gates[r]]
-        pk = [place_keys[i] for i in members[r]]
+        a = int(members[r][0])
+        gk = gate_bytes[gates_of[r]].tobytes()     # gate indices ascend with their keys
         regions.append(Region((REAL, int(pl[a, 0]), int(pl[a, 1]), int(pl[a, 2]), int(pl[a, 3])),
-                              int(pl[a, 0]), int(pl[a, 1]), region_signature(gk, pk), False,
-                              tuple(members[r]), signature_of(gk)))
+                              int(pl[a, 0]), int(pl[a, 1]), crc16(gk + place_bytes[members[r]].tobytes()), False,
+                              tuple(members[r].tolist()), crc16(gk)))
 
     # Virtual regions behind gates with places on one side only.
+    keys = [tuple(a) for a in acc[:, :3].tolist()]
     virtual: list[tuple[tuple[int, ...], int, int, int]] = []   # (id, anchor x, anchor y, adjacent real region)
-    if n and len(acc):
-        tree = cKDTree(pl[:, :2].astype(np.float64) * 10)
-        r_cm = p.side_radius_cm
-        for g in range(len(acc)):
-            ax, ay, bx, by = (int(v) for v in seg[g])
-            cx, cy = int(acc[g, 0]) * 10, int(acc[g, 1]) * 10
-            reach = math.hypot(bx - ax, by - ay) / 2 + r_cm + 2.0
-            near = np.array(sorted(tree.query_ball_point((cx, cy), reach)), np.int64)
-            nearest = [None, None]      # per side: (d2 to the centre, place index)
-            if len(near):
-                px, py = pl[near, 0] * 10, pl[near, 1] * 10
-                ok = near_segment(px - cx, py - cy, ax - cx, ay - cy, bx - cx, by - cy, r_cm)
-                plus = orient(ax, ay, bx, by, px, py) >= 0
-                d2 = (px - cx) ** 2 + (py - cy) ** 2
-                for side, mask in ((SIDE_PLUS, ok & plus), (SIDE_MINUS, ok & ~plus)):
-                    if mask.any():
-                        idx = near[mask]
-                        k = np.lexsort((idx, d2[mask]))[0]
-                        nearest[side] = int(idx[k])
-            for side in (SIDE_PLUS, SIDE_MINUS):
-                other = nearest[1 - side]
-                if nearest[side] is not None or other is None:
-                    continue
-                d = int(acc[g, 2])
-                nx = -_q_mul(VIRTUAL_ANCHOR_DM, int(SIN_Q[d]))
-                ny = _q_mul(VIRTUAL_ANCHOR_DM, int(COS_Q[d]))
-                sgn = 1 if side == SIDE_PLUS else -1
-                virtual.append(((VIRTUAL, *keys[g], side), int(acc[g, 0]) + sgn * nx, int(acc[g, 1]) + sgn * ny,
-                                int(region_of_place[other])))
+    for g, side, other in _one_sided_gates(pl, tree, acc, seg, p.side_radius_cm):
+        d = int(acc[g, 2])
+        nx = -_q_mul(VIRTUAL_ANCHOR_DM, int(SIN_Q[d]))
+        ny = _q_mul(VIRTUAL_ANCHOR_DM, int(COS_Q[d]))
+        sgn = 1 if side == SIDE_PLUS else -1
+        virtual.append(((VIRTUAL, *keys[g], side), int(acc[g, 0]) + sgn * nx, int(acc[g, 1]) + sgn * ny,
+                        int(region_of_place[other])))
     virtual.sort()
     gate_index = {k: g for g, k in enumerate(keys)}
     for vid, x, y, real in virtual:
@@ -542,6 +593,9 @@ def fold(places: Iterable[Place | tuple[int, ...]], gates: Iterable[Gate | tuple
         sig = signature_of([keys[g]])
         regions.append(Region(vid, x, y, sig, True, (), sig))
         adjacency.add((real, k, g))
-    return RegionGraph(places=pl, gate_records=gr, gate_of_record=gate_of_record, gates=acc, segments_cm=seg,
-                       edges=edges, edge_kind=kind, cuts=cuts, region_of_place=region_of_place,
-                       regions=tuple(regions), adjacency=tuple(sorted(adjacency)), params=p)
+    out = RegionGraph(places=pl, gate_records=gr, gate_of_record=gate_of_record, gates=acc, segments_cm=seg,
+                      edges=edges, edge_kind=kind, cuts=cuts, region_of_place=region_of_place,
+                      regions=tuple(regions), adjacency=tuple(sorted(adjacency)), params=p)
+    if tree is not None:
+        object.__setattr__(out, "_tree", tree)
+    return out

@@ -325,16 +325,20 @@ class Pereira(Scheme):
         """Each point's region: the label grid's where it has one for this graph, else the
         nearest place with no gate between (RegionGraph.label)."""
         reach = int(round(self.s.params.pereira_label_reach_m * 10))
+        out: list[int | None] = [NO_LABEL] * len(xy)
         g = self._grid
-        if g is None or g[0] is not graph or not xy:
-            return [graph.label(dm(x), dm(y), reach) for x, y in xy]
-        _graph, _t, row0, col0, grid = g
-        res = self.s.params.resolution_m
-        out = []
-        for x, y in xy:
-            i, j = int(math.floor(y / res)) - row0, int(math.floor(x / res)) - col0
-            k = int(grid[i, j]) if 0 <= i < grid.shape[0] and 0 <= j < grid.shape[1] else NO_LABEL
-            out.append(k if k != NO_LABEL else graph.label(dm(x), dm(y), reach))
+        if g is not None and g[0] is graph:
+            _graph, _t, row0, col0, grid = g
+            res = self.s.params.resolution_m
+            for q, (x, y) in enumerate(xy):
+                i, j = int(math.floor(y / res)) - row0, int(math.floor(x / res)) - col0
+                if 0 <= i < grid.shape[0] and 0 <= j < grid.shape[1]:
+                    out[q] = int(grid[i, j])
+        rest = [q for q, k in enumerate(out) if k == NO_LABEL]
+        if rest:
+            far = graph.labels(np.array([(dm(xy[q][0]), dm(xy[q][1])) for q in rest], np.int64), reach)
+            for q, k in zip(rest, far):
+                out[q] = k
         return out
 
     def _position(self) -> tuple[float, float]:
