@@ -2,11 +2,16 @@ import os
 import signal
 from pathlib import Path
 
-# The host tools run numba on one thread unless told otherwise (host_tools/__init__.py); the
-# tests want at least two, so that the parallel kernels' thread-count tests compare something.
+# The host tools run numba on one thread unless told otherwise (host_tools/__init__.py). The
+# pool here has at least two, so that the parallel kernels' thread-count tests compare
+# something, but the tests run on one (numba.set_num_threads is per calling thread): `make
+# test` runs two test processes, and two threads each would crowd two cores.
 os.environ.setdefault("NUMBA_NUM_THREADS", str(max(2, os.cpu_count() or 1)))
 
+import numba  # noqa: E402
 import pytest  # noqa: E402
+
+numba.set_num_threads(1)
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED_MAPS = REPO.parent / "shared" / "maps"

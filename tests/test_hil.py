@@ -131,6 +131,7 @@ def test_a_second_world_on_the_same_bus_is_refused():
             talker.join()
 
 
+@pytest.mark.realtime
 def test_two_robot_processes_explore_a_30_m_cave_in_real_time_on_emulated_devices(tmp_path):
     """The acceptance of issue 26's hardware in the loop: two unchanged `lorascout robot`
     processes, with the real serial and CAN drivers, explore cave:7:30x30 on the wall clock to

@@ -97,6 +97,7 @@ def test_smallest_and_odd_sizes(kind):
     check_invariants(occ, start)
 
 
+@pytest.mark.realtime
 @pytest.mark.parametrize("kind", ["cave", "tunnel"])
 def test_500m_map_is_quick(kind):
     t0 = time.perf_counter()

@@ -234,6 +234,7 @@ def test_open_serial_radios_and_garbage_on_the_line():
         link.close()
 
 
+@pytest.mark.realtime
 def test_no_call_waits_for_a_slow_module():
     """Every answer of this module takes 100 ms: transmit, busy and poll still return at once
     (the writer thread waits for the answers), and the frame's fate arrives later."""

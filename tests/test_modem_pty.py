@@ -27,6 +27,7 @@ def cmd(port: serial.Serial, line: str) -> str:
     return reply[:-2].decode()
 
 
+@pytest.mark.realtime
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_plain_pyserial_talks_to_the_printed_devices(sig):
     with ModemServer(2) as server:

@@ -57,6 +57,7 @@ def _receive_with(lib, sender, payload_hex: str, timeout_s: float = 20.0) -> str
     return line[len(P.RADIO_RX_PREFIX):]
 
 
+@pytest.mark.realtime
 def test_loranode_sets_every_radio_parameter_and_two_libraries_talk_with_those_settings():
     loranode = pytest.importorskip("loranode")
     with ModemServer(2) as server:

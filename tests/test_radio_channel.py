@@ -517,6 +517,7 @@ def test_event_and_sink_order():
     assert w.fate(0, 1, nth=1) == NOT_LISTENING
 
 
+@pytest.mark.realtime
 def test_idle_advance_is_cheap():
     import time as _time
     w = World({i: (float(i), 0.0) for i in range(5)})

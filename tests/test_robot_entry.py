@@ -393,6 +393,7 @@ def test_a_signal_ends_the_loop_after_the_tick_and_a_done_robot_stops_by_itself(
 
 # ---- the simulated robot, as a user runs it ----------------------------------------------------
 
+@pytest.mark.realtime
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_the_sim_example_runs_in_real_time_until_a_signal_stops_it_with_the_drive_at_zero(sig):
     with RobotProcess("--config", str(SIM_EXAMPLE), "--json", "--log-interval-s", "0.5") as robot:
