@@ -38,10 +38,11 @@ from firmware.schemes.pereira.regions import RegionGraph
 class ClaimSet:
     """A grow-only set of claims (G-Set). `a | b` is the join."""
 
-    __slots__ = ("_claims",)
+    __slots__ = ("_claims", "_in_order")
 
     def __init__(self, claims: Iterable[Claim] = ()) -> None:
         self._claims = frozenset(Claim(*(int(v) for v in c)) for c in claims)
+        self._in_order: tuple[Claim, ...] | None = None
 
     def join(self, other: ClaimSet) -> ClaimSet:
         out = ClaimSet()
@@ -63,7 +64,9 @@ class ClaimSet:
         return hash(self._claims)
 
     def __iter__(self) -> Iterator[Claim]:
-        return iter(sorted(self._claims))
+        if self._in_order is None:
+            self._in_order = tuple(sorted(self._claims))
+        return iter(self._in_order)
 
     def __len__(self) -> int:
         return len(self._claims)

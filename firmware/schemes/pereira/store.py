@@ -2,9 +2,9 @@
 
 A grow-only set: `add` ingests one record (a duplicate changes nothing), `merge` takes in
 another store's records (set union: the join). The region graph is folded again only when
-places or gates arrived since the last look; the status view depends on the graph and the
-claims. Both are functions of the set alone, so any interleaving of ingestion gives what
-batch ingestion gives.
+places or gates arrived since the last look, the claim set built again only when claims
+did; the status view depends on the graph and the claims. Both are functions of the set
+alone, so any interleaving of ingestion gives what batch ingestion gives.
 """
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ class Store:
         self._gates: set[Gate] = set()
         self._claims: set[Claim] = set()
         self._graph: RegionGraph | None = None
+        self._claim_set: ClaimSet | None = None
         for r in records:
             self.add(r)
 
@@ -40,7 +41,9 @@ class Store:
         if record in held:
             return False
         held.add(record)
-        if held is not self._claims:
+        if held is self._claims:
+            self._claim_set = None
+        else:
             self._graph = None
         return True
 
@@ -62,7 +65,9 @@ class Store:
         return self._graph
 
     def claims(self) -> ClaimSet:
-        return ClaimSet(self._claims)
+        if self._claim_set is None:
+            self._claim_set = ClaimSet(self._claims)
+        return self._claim_set
 
     def view(self, observer: int) -> StatusView:
         return status_view(self.graph(), self.claims(), observer)
