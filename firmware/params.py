@@ -225,14 +225,23 @@ class ExplorationParams:
     pereira_gate_period_s: float = _p(2.0, 's', 0.1, 3600.0, "gates are looked for in the robot's map this often")
     pereira_widening_kappa: float = _p(0.5, '1', 0.0, 10.0,
                                        'a gate needs free space (1 + this) times its clearance wide beyond it')
-    # The spec's end-game safety net, off by default: with transit and the teammates' view no
-    # run needed it (five robots on maze_a and the cave, two and three on the eight-region
-    # map: coverage >= 0.996 without), and on maze_a the last robot exploring drove on for
-    # minutes taking back waypoints whose promise was the far rim of its own map (p_max
-    # 539 m with it, 333 m without; docs/pereira/transit-5651009/).
+    # The spec's end-game safety net while teammates explore, off by default: with transit
+    # and the teammates' view no run needed it (five robots on maze_a and the cave, two and
+    # three on the eight-region map: coverage >= 0.996 without), and on maze_a the last robot
+    # exploring drove on for minutes taking back waypoints whose promise was the far rim of
+    # its own map (p_max 539 m with it, 333 m without; docs/pereira/transit-5651009/).
     pereira_take_back: bool = _p(False, 'bool', None, None,
                                  "a robot with nothing else left takes back waypoints in regions others claimed "
                                  "that their places could not have seen")
+    # The same net for the last robot exploring only, off by default. A claim covers its
+    # region as its claimant knew it, and a room no one entered, labelled into a claimed
+    # region through a doorway no gate marks, is left unseen without it (maze_a seed 2 with
+    # pereira_intent_move_m=3: coverage 0.957; maze_b seed 5: 0.80, every robot stopped by
+    # itself); with it both cover 1.0, but on maze_a's ten seeds the last robot retraced its
+    # teammates' regions: p_max 559 m against 331 (docs/pereira/take-back-alone/).
+    pereira_take_back_alone: bool = _p(False, 'bool', None, None,
+                                       "with no teammate exploring any more, a robot takes back waypoints in regions "
+                                       "others claimed that their places could not have seen")
     pereira_revive_min_bit: float = _p(4000.0, 'bit', 0.0, 1e9,
                                        "waypoints this rich in regions others claimed are taken back by a robot "
                                        "with nothing else left and no teammate's region to head for, or with no "

@@ -1,7 +1,8 @@
 """Pereira's planning stage (Pereira.filter_waypoints): waypoints in a region a teammate
 claimed explored are left to it; waypoints the teammates' places saw are dropped; a robot
 with nothing else left heads for a region a teammate heads for (transit), and with
-pereira_take_back takes back what is still unseen from every teammate's place.
+pereira_take_back (or, once no teammate explores, pereira_take_back_alone) takes back what
+is still unseen from every teammate's place.
 
 The map: a corridor y in [19, 21] m from x = 5 to 35 m, walls along both sides, unknown
 beyond x = 35 m (the open end). Teammate 1 drove the corridor's west part and claims its
@@ -89,6 +90,28 @@ def test_no_take_back_by_default():
     rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True)
     assert _filter(rig, AT_THE_END) == []
     assert rig.stat("waypoints_taken_back") == 0 and rig.stat("waypoints_left_to_team") == 1
+
+
+def test_with_pereira_take_back_alone_the_last_robot_exploring_takes_back_what_no_teammate_saw():
+    """No teammate explores any more: whatever this robot leaves to a claim stays unseen."""
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=False,
+               params=dataclasses.replace(P, pereira_take_back_alone=True))
+    assert _filter(rig, AT_THE_END) == [AT_THE_END]
+    assert rig.stat("waypoints_taken_back") == 1
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=False)
+    assert _filter(rig, AT_THE_END) == []
+    assert rig.stat("waypoints_left_to_team") == 1
+
+
+def test_beyond_the_window_the_last_robot_takes_back_only_what_no_teammate_stood_within_half_its_reach_of():
+    """Beyond the window there is no map to cast the teammates' view in: a place within
+    d_cam_m / 2 of the waypoint counts as having seen it; one farther off does not."""
+    params = dataclasses.replace(P, pereira_take_back_alone=True)
+    beyond = (60.0, 20.0)                       # the window spans 0 to 40 m
+    for place_x_m, kept in ((60.0 - P.d_cam_m / 2 + 0.5, []), (60.0 - P.d_cam_m / 2 - 0.5, [beyond])):
+        rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0, place_x_m], teammate_active=False, params=params)
+        assert _filter(rig, beyond) == kept
+        assert rig.stat("waypoints_taken_back") == len(kept) and rig.stat("waypoints_left_to_team") == 1 - len(kept)
 
 
 def test_while_it_has_its_own_waypoints_it_leaves_the_claimed_region_to_the_team():

@@ -58,10 +58,14 @@ Not yet, or not as the spec says:
 - a robot with nothing else worth heading for while teammates explore keeps the waypoint
   on its shortest way (along the places' edges) to a region a teammate's intent heads for
   (pereira_transit), mapping its way through claimed regions, instead of stopping;
-- the end-game safety net (the spec's, once every teammate is done) is off by default
-  (pereira_take_back): no run of the grids needed it once transit and the teammates' view
-  were in, and on maze_a it doubled p_max. With it on, it also serves a robot with nothing
-  else left and no such way while teammates explore: it takes back rich waypoints (pereira_revive_min_bit) in claimed regions that no teammate left a place
+- the end-game safety net (the spec's) is off by default. Without it a room no one entered,
+  its waypoints labelled into a claimed region through a doorway no gate marked, is left
+  unseen (maze_b seed 5: a fifth of the maze); with it for the last robot exploring
+  (pereira_take_back_alone) that room is covered, but the last robot also retraces its
+  teammates' regions, whose far rim its own map shows unknown (maze_a: p_max 1.7 times).
+  While teammates explore (pereira_take_back) no run of the grids needed it once transit
+  and the teammates' view were in. With pereira_take_back on,
+  it serves a robot with nothing else left and no such way while teammates explore: it takes back rich waypoints (pereira_revive_min_bit) in claimed regions that no teammate left a place
   within revive_clear_m of and that keep pereira_revive_left_bit once the view from every
   teammate's place (not only the claimants') counts as seen; beyond the window only once
   every teammate is done. A robot that has already stopped is woken only by a retraction;

@@ -350,9 +350,10 @@ class Pereira(Scheme):
         A6); the others are dropped where the teammates' places saw what they promise
         (_seen_by_team). A robot with nothing else worth heading for, while teammates
         explore, keeps the one on its way to a region a teammate is heading for (_transit);
-        with none, or with no teammate exploring any more, and pereira_take_back, it takes
-        back those worth it (_worth_taking_back; the spec's end-game safety net: a claim
-        made for the region as its claimant knew it must not leave a hole)."""
+        with none and pereira_take_back, or with no teammate exploring any more and
+        pereira_take_back_alone, it takes back those worth it (_worth_taking_back; the spec's
+        end-game safety net: a claim made for the region as its claimant knew it must not
+        leave a hole)."""
         items = self.s.waypoints.items
         if not items:
             return
@@ -374,7 +375,9 @@ class Pereira(Scheme):
         if left and not alone and self.s.params.pereira_transit and \
                 not self.s.waypoints.worth_heading_for(view.x_m, view.y_m, among=own):
             transit = self._transit(graph, left, view.x_m, view.y_m, view.now_us)
-        take_back = self.s.params.pereira_take_back and left and transit is None and (alone or all(claimed))
+        p = self.s.params
+        end_game = alone and p.pereira_take_back_alone
+        take_back = left and transit is None and (end_game or (p.pereira_take_back and (alone or all(claimed))))
         back = iter(self._worth_taking_back(graph, view.sight, left, alone) if take_back else [False] * len(left))
         kept = []
         for w, r, c, sn in zip(items, labels, claimed, seen):
@@ -492,14 +495,19 @@ class Pereira(Scheme):
         teammates' regions again (1144 m against their 100-490 m); with the place test alone
         (commit c368dee, seed 0 over eu868-g3) the team had seen all of maze_a at 840 s and
         the last robot drove on, taking waypoints back, until 1548 s. Beyond the window
-        there is nothing to cast against, and only a robot with no teammate exploring takes
-        a waypoint back there."""
+        there is nothing to cast against: only a robot with no teammate exploring takes a
+        waypoint back there, and only one no teammate's place lies within half the sensor's
+        reach (d_cam_m) of, whose LiDAR would have seen most of what it promises (with
+        revive_clear_m there, the last robot on maze_a seed 3 drove 915 m, its teammates
+        224 to 328 m, retracing their corridors)."""
         p = self.s.params
         lm = self.s.local_map
-        rich = [w.e_bit >= p.pereira_revive_min_bit and not self._teammate_stood_near(graph, w) for w in items]
+        rich = [w.e_bit >= p.pereira_revive_min_bit and not self._teammate_stood_near(graph, w, p.revive_clear_m)
+                for w in items]
         xy = np.array([(w.x_m, w.y_m) for w in items], np.float64).reshape(-1, 2)
         _ij, inside = lm.cells_of(xy)
-        out = [r and alone and not i for r, i in zip(rich, inside.tolist())]
+        out = [r and alone and not i and not self._teammate_stood_near(graph, w, p.d_cam_m / 2)
+               for w, r, i in zip(items, rich, inside.tolist())]
         ask = np.nonzero(np.array(rich) & inside)[0]
         if len(ask):
             theirs, _tree = self._teammates_places(graph)
@@ -508,10 +516,9 @@ class Pereira(Scheme):
                 out[k] = bits >= p.pereira_revive_left_bit
         return out
 
-    def _teammate_stood_near(self, graph: RegionGraph, w) -> bool:
-        """Did a teammate leave a place within revive_clear_m of the waypoint? Then it saw
-        what the waypoint would show."""
-        near = graph.places_within(w.x_m * 10, w.y_m * 10, self.s.params.revive_clear_m * 10)
+    def _teammate_stood_near(self, graph: RegionGraph, w, radius_m: float) -> bool:
+        """Did a teammate leave a place within radius_m of the waypoint?"""
+        near = graph.places_within(w.x_m * 10, w.y_m * 10, radius_m * 10)
         return bool((graph.places[near, 2] != self.s.robot_id).any())
 
     def rank(self, view: PlanningView, own: list[Candidate]) -> list[Candidate]:
