@@ -64,11 +64,12 @@ Not yet, or not as the spec says:
   (pereira_take_back_alone) that room is covered, but the last robot also retraces its
   teammates' regions, whose far rim its own map shows unknown (maze_a: p_max 1.7 times).
   While teammates explore (pereira_take_back) no run of the grids needed it once transit
-  and the teammates' view were in. With pereira_take_back on,
-  it serves a robot with nothing else left and no such way while teammates explore: it takes back rich waypoints (pereira_revive_min_bit) in claimed regions that no teammate left a place
-  within revive_clear_m of and that keep pereira_revive_left_bit once the view from every
+  and the teammates' view were in. Either takes back rich waypoints
+  (pereira_revive_min_bit) in claimed regions that no teammate left a place within
+  revive_clear_m of and that keep pereira_revive_left_bit once the view from every
   teammate's place (not only the claimants') counts as seen; beyond the window only once
-  every teammate is done. A robot that has already stopped is woken only by a retraction;
+  every teammate is done, and only where no teammate's place lies within d_cam_m / 2. A
+  robot that has already stopped is woken only by a retraction;
 - a robot that stops claims every region it has mapped whole (its places all known, none of
   the frontiers it leaves in it, no teammate's claim on it), beyond A2's window;
 - robots share no maps (as in the paper): what a waypoint promises is counted through the
@@ -87,8 +88,8 @@ Not yet, or not as the spec says:
   file for it yet): only missions (`lorascout run`, `sweep`) hand it over;
 - paths over the region graph (a transit is chosen along the places' edges, but driven on
   the robot's own map and places, like the no-sharing baseline's), the pereira-grid variant, the region overlay as filled areas, a numba fold,
-  and the rest of the acceptance grid (maze_b and the Intel lab over 10 seeds, the ideal
-  link, pereira-oracle, ranges, loss; maze_a and the cave over eu868-g3 ran);
+  and the rest of the acceptance grid (the Intel lab over 10 seeds, the ideal link,
+  pereira-oracle, ranges, loss; maze_a, maze_b and the cave over eu868-g3 ran);
 - a finished robot no longer judges regions, so a region it claimed that grows a
   teammate's place (its signature changes) is never claimed again, and the teammate
   explores it anew (the paper's scaling experiment on tests/data/pereira8: see the
