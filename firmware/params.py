@@ -248,6 +248,13 @@ class ExplorationParams:
                                        "teammate exploring")
     pereira_revive_left_bit: float = _p(900.0, 'bit', 0.0, 1e9,
                                         "... if this much is left unseen by a LiDAR at every teammate's place")
+    # A claim covers its region as its claimant knew it; this robot's label grid may carry the
+    # region's label through a doorway no gate marks into rooms no teammate came near. Their
+    # waypoints are kept, not left to the claim (maze_b seed 5 without: coverage 0.80, every
+    # robot stopped by itself; docs/pereira/claims-near-only/).
+    pereira_claims_near_only: bool = _p(True, 'bool', None, None,
+                                        "a waypoint in a region others claimed is left to them only if a "
+                                        "teammate's place lies within d_cam_m of it")
     # Waypoints in regions no one claimed are dropped when the teammates' places saw what they
     # promise (the take-back's test): claims come late, or never for a region explored in parts.
     pereira_team_view: bool = _p(True, 'bool', None, None,

@@ -22,6 +22,8 @@ from tests.doubles import PlannerRig
 from tests.doubles import paint_box as paint
 
 P = ExplorationParams()
+# The take-back's tests: a claim on the west region leaves even what no teammate came near.
+CLAIMS_COVER_ALL = dataclasses.replace(P, pereira_claims_near_only=False)
 ME, OTHER = 0, 1
 NOW_US = 1_000_000
 AT_THE_END = (34.0, 20.0)                 # a waypoint at the corridor's open end
@@ -77,7 +79,7 @@ def _filter(rig: PlannerRig, *waypoints: tuple[float, ...]) -> list[tuple[float,
     return [(w.x_m, w.y_m) for w in rig.waypoints.items]
 
 
-TAKING_BACK = dataclasses.replace(P, pereira_take_back=True)
+TAKING_BACK = dataclasses.replace(CLAIMS_COVER_ALL, pereira_take_back=True)
 
 
 def test_a_robot_with_nothing_else_takes_back_what_no_teammate_could_have_seen():
@@ -87,7 +89,7 @@ def test_a_robot_with_nothing_else_takes_back_what_no_teammate_could_have_seen()
 
 
 def test_no_take_back_by_default():
-    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True)
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True, params=CLAIMS_COVER_ALL)
     assert _filter(rig, AT_THE_END) == []
     assert rig.stat("waypoints_taken_back") == 0 and rig.stat("waypoints_left_to_team") == 1
 
@@ -95,10 +97,10 @@ def test_no_take_back_by_default():
 def test_with_pereira_take_back_alone_the_last_robot_exploring_takes_back_what_no_teammate_saw():
     """No teammate explores any more: whatever this robot leaves to a claim stays unseen."""
     rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=False,
-               params=dataclasses.replace(P, pereira_take_back_alone=True))
+               params=dataclasses.replace(CLAIMS_COVER_ALL, pereira_take_back_alone=True))
     assert _filter(rig, AT_THE_END) == [AT_THE_END]
     assert rig.stat("waypoints_taken_back") == 1
-    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=False)
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=False, params=CLAIMS_COVER_ALL)
     assert _filter(rig, AT_THE_END) == []
     assert rig.stat("waypoints_left_to_team") == 1
 
@@ -106,12 +108,28 @@ def test_with_pereira_take_back_alone_the_last_robot_exploring_takes_back_what_n
 def test_beyond_the_window_the_last_robot_takes_back_only_what_no_teammate_stood_within_half_its_reach_of():
     """Beyond the window there is no map to cast the teammates' view in: a place within
     d_cam_m / 2 of the waypoint counts as having seen it; one farther off does not."""
-    params = dataclasses.replace(P, pereira_take_back_alone=True)
+    params = dataclasses.replace(CLAIMS_COVER_ALL, pereira_take_back_alone=True)
     beyond = (60.0, 20.0)                       # the window spans 0 to 40 m
     for place_x_m, kept in ((60.0 - P.d_cam_m / 2 + 0.5, []), (60.0 - P.d_cam_m / 2 - 0.5, [beyond])):
         rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0, place_x_m], teammate_active=False, params=params)
         assert _filter(rig, beyond) == kept
         assert rig.stat("waypoints_taken_back") == len(kept) and rig.stat("waypoints_left_to_team") == 1 - len(kept)
+
+
+def test_a_claim_leaves_to_the_team_only_what_a_teammates_place_came_within_d_cam_of():
+    """Teammate 1 claimed the west region from places at x 6-10 m. This robot's map carries
+    the region on to the open end (no gate between): the waypoint there, 24 m from every
+    teammate's place, is kept; one 2 m from them is left to the claim."""
+    near_the_places = (12.0, 20.0)
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True)
+    assert _filter(rig, AT_THE_END, near_the_places) == [AT_THE_END]
+    assert rig.stat("claimed_waypoints_kept") == 1 and rig.stat("waypoints_left_to_team") == 1
+    just_within = (10.0 + P.d_cam_m - 0.2, 20.0)
+    just_beyond = (10.0 + P.d_cam_m + 0.2, 20.0)
+    assert _filter(_rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True), just_within, just_beyond) == [just_beyond]
+    rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True, params=CLAIMS_COVER_ALL)
+    assert _filter(rig, AT_THE_END, near_the_places) == []
+    assert rig.stat("claimed_waypoints_kept") == 0 and rig.stat("waypoints_left_to_team") == 2
 
 
 def test_while_it_has_its_own_waypoints_it_leaves_the_claimed_region_to_the_team():

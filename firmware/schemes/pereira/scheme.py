@@ -147,7 +147,7 @@ class Pereira(Scheme):
             "places_sent", "gates_sent", "claims_sent", "claims_retracted", "intents_sent", "summaries_sent",
             "records_pushed", "records_heard_new", "waypoints_left_to_team", "waypoints_taken_back",
             "choices_yielded", "records_dropped_by_link", "claims_on_stopping", "transit_choices",
-            "waypoints_seen_by_team"), 0)
+            "waypoints_seen_by_team", "claimed_waypoints_kept"), 0)
 
     def tasks(self) -> list[Task]:
         p = self.s.params
@@ -347,7 +347,8 @@ class Pereira(Scheme):
     # --- the planning stage -----------------------------------------------------------
     def filter_waypoints(self, view: PlanningView) -> None:
         """Waypoints in regions a teammate's claim calls explored are left to the team (A5,
-        A6); the others are dropped where the teammates' places saw what they promise
+        A6) if a teammate's place lies within d_cam_m of them (pereira_claims_near_only,
+        _out_of_teammates_reach); the others are dropped where the teammates' places saw what they promise
         (_seen_by_team). A robot with nothing else worth heading for, while teammates
         explore, keeps the one on its way to a region a teammate is heading for (_transit);
         with none and pereira_take_back, or with no teammate exploring any more and
@@ -367,6 +368,10 @@ class Pereira(Scheme):
         else:
             labels = [None] * len(items)
         claimed = [r is not None and r in others for r in labels]
+        if self.s.params.pereira_claims_near_only and any(claimed):
+            for k in self._out_of_teammates_reach(graph, items, claimed):
+                claimed[k] = False
+                self.counts["claimed_waypoints_kept"] += 1
         left = [w for w, c in zip(items, claimed) if c]
         alone = not self.s.roster.any_active(view.now_us)
         seen = self._seen_by_team(graph, view.sight, items, claimed)
@@ -392,6 +397,20 @@ class Pereira(Scheme):
                 self.counts["waypoints_left_to_team"] += 1
                 self._left_labels.add(r)
         items[:] = kept
+
+    def _out_of_teammates_reach(self, graph: RegionGraph, items: list, claimed: list[bool]) -> list[int]:
+        """Which claimed waypoints (indices) no teammate's place lies within d_cam_m of: no
+        teammate could have seen what they promise, whatever the claim says. The label grid
+        walks this robot's free cells from a region's places as far as they reach: through a
+        doorway no gate marks it carries a claimed region's label into rooms the claimant
+        never saw (maze_b seed 5: a wing, a fifth of the maze)."""
+        theirs, tree = self._teammates_places(graph)
+        ask = np.flatnonzero(claimed)
+        if tree is None:
+            return ask.tolist()
+        xy = np.array([(items[k].x_m, items[k].y_m) for k in ask.tolist()], np.float64).reshape(-1, 2)
+        gap_m = tree.query(xy, distance_upper_bound=self.s.params.d_cam_m)[0]
+        return ask[gap_m == math.inf].tolist()
 
     def _seen_by_team(self, graph: RegionGraph, sight: np.ndarray, items: list, claimed: list[bool]) -> list[bool]:
         """Which waypoints in regions no teammate claimed its teammates have seen: in the
