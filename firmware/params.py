@@ -213,6 +213,12 @@ class ExplorationParams:
                                  'the current region changes after this much travel in another (hysteresis)')
     pereira_label_reach_m: float = _p(10.0, 'm', 0.5, 100.0,
                                       'a waypoint is in the region of the nearest place this close, no gate between')
+    # Places go every d_build_m (the spec's d_place); with this > 0 none where the region graph
+    # holds a place that close (fewer bytes, fewer signature changes undoing claims). Off by
+    # default: measured on two seeds per map only (docs/pereira/claims-near-only/).
+    pereira_place_skip_m: float = _p(0.0, 'm', 0.0, 5.0,
+                                     "no place is sent where the region graph holds one this close (0: a place "
+                                     "every d_build_m)")
     pereira_explored_cycles: int = _p(2, 'cycles', 1, 100,
                                       'planning cycles in a row a region must look explored before it is claimed')
     pereira_intent_period_s: float = _p(5.0, 's', 0.5, 3600.0, 'the intent record is repeated this often')
@@ -233,12 +239,11 @@ class ExplorationParams:
     pereira_take_back: bool = _p(False, 'bool', None, None,
                                  "a robot with nothing else left takes back waypoints in regions others claimed "
                                  "that their places could not have seen")
-    # The same net for the last robot exploring only, off by default. A claim covers its
-    # region as its claimant knew it, and a room no one entered, labelled into a claimed
-    # region through a doorway no gate marks, is left unseen without it (maze_a seed 2 with
-    # pereira_intent_move_m=3: coverage 0.957; maze_b seed 5: 0.80, every robot stopped by
-    # itself); with it both cover 1.0, but on maze_a's ten seeds the last robot retraced its
-    # teammates' regions: p_max 559 m against 331 (docs/pereira/take-back-alone/).
+    # The same net for the last robot exploring only, off by default. Without it and without
+    # pereira_claims_near_only, a room no one entered, labelled into a claimed region through
+    # a doorway no gate marks, was left unseen (maze_b seed 5: coverage 0.80); with it the
+    # room is covered, but on maze_a's ten seeds the last robot retraced its teammates'
+    # regions: p_max 559 m against 331 (docs/pereira/take-back-alone/).
     pereira_take_back_alone: bool = _p(False, 'bool', None, None,
                                        "with no teammate exploring any more, a robot takes back waypoints in regions "
                                        "others claimed that their places could not have seen")
@@ -255,6 +260,11 @@ class ExplorationParams:
     pereira_claims_near_only: bool = _p(True, 'bool', None, None,
                                         "a waypoint in a region others claimed is left to them only if a "
                                         "teammate's place lies within d_cam_m of it")
+    # ... and ranked after every other: a robot goes there once nothing else is left, when a
+    # teammate may have come near (then they are left to the claim after all). maze_b seed 5:
+    # p_max 338 m ranked last, 587 m ranked by their category.
+    pereira_unseen_claimed_last: bool = _p(True, 'bool', None, None,
+                                           "those waypoints are ranked after every other")
     # Waypoints in regions no one claimed are dropped when the teammates' places saw what they
     # promise (the take-back's test): claims come late, or never for a region explored in parts.
     pereira_team_view: bool = _p(True, 'bool', None, None,

@@ -16,6 +16,7 @@ from firmware.params import ExplorationParams
 from firmware.schemes.base import PlanningView
 from firmware.schemes.pereira.records import DIR_CODES, INTENT_STATES, Claim, Gate, Intent, Place, values_of
 from firmware.services.local_map import LocalMap
+from firmware.services.targets import Candidate
 from firmware.services.waypoints import Waypoint
 from host_tools.mission import MissionConfig, run_mission
 from tests.doubles import PlannerRig
@@ -130,6 +131,21 @@ def test_a_claim_leaves_to_the_team_only_what_a_teammates_place_came_within_d_ca
     rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True, params=CLAIMS_COVER_ALL)
     assert _filter(rig, AT_THE_END, near_the_places) == []
     assert rig.stat("claimed_waypoints_kept") == 0 and rig.stat("waypoints_left_to_team") == 2
+
+
+def test_claimed_waypoints_no_teammate_came_near_are_ranked_after_every_other():
+    """Kept against the claim, the waypoint at the open end comes last: the robot goes there
+    once nothing else is left (by when a teammate may have come near it)."""
+    for last in (True, False):
+        rig = _rig([6.0, 7.0, 8.0, 9.0, 10.0], teammate_active=True,
+                   params=dataclasses.replace(P, pereira_unseen_claimed_last=last))
+        _filter(rig, AT_THE_END, FAR_AWAY)
+        view = PlanningView(20.0, 20.0, NOW_US, rig.local_map.layers().sight, None, frozenset(),
+                            lambda cands: np.full(len(cands), math.inf))
+        ranked = rig.scheme.rank(view, [Candidate(x, y, 2.0 * P.pereira_revive_min_bit, False)
+                                        for x, y in (AT_THE_END, FAR_AWAY)])
+        at_the_end, far_away = (c.rank for c in ranked)
+        assert (at_the_end > far_away) == last
 
 
 def test_while_it_has_its_own_waypoints_it_leaves_the_claimed_region_to_the_team():

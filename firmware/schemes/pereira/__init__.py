@@ -58,9 +58,13 @@ Not yet, or not as the spec says:
 - a robot with nothing else worth heading for while teammates explore keeps the waypoint
   on its shortest way (along the places' edges) to a region a teammate's intent heads for
   (pereira_transit), mapping its way through claimed regions, instead of stopping;
-- the end-game safety net (the spec's) is off by default. Without it a room no one entered,
-  its waypoints labelled into a claimed region through a doorway no gate marked, is left
-  unseen (maze_b seed 5: a fifth of the maze); with it for the last robot exploring
+- a claim leaves to the team only the waypoints a teammate's place lies within d_cam_m of
+  (pereira_claims_near_only): the label grid carries a claimed region's label through a
+  doorway no gate marks into rooms no teammate came near, and without this test their
+  waypoints were left to the claim and the room unseen (maze_b seed 5: a fifth of the
+  maze, every robot stopped by itself);
+- the end-game safety net (the spec's) is off by default. Before the test above, a room no
+  one entered was left unseen without it; with it for the last robot exploring
   (pereira_take_back_alone) that room is covered, but the last robot also retraces its
   teammates' regions, whose far rim its own map shows unknown (maze_a: p_max 1.7 times).
   While teammates explore (pereira_take_back) no run of the grids needed it once transit

@@ -120,6 +120,9 @@ class Pereira(Scheme):
         self._milestones = TravelMilestones(p.d_build_m)
         self._oseq = 0
         self._last_place_oseq: int | None = None
+        self._passed_over: tuple[float, float, int] | None = None   # the last place skipped: x, y (m), clear (dm)
+        self._on_covered_ground = False                      # the last milestone had a place of the graph near
+        self._last_resort: set[tuple[float, float]] = set()   # claimed waypoints no teammate came near: ranked last
         self._intents: dict[int, tuple[Intent, int]] = {}     # teammate -> (last intent, when heard)
         self._iseq = 0
         self._said_intent: tuple[int, int, int, int] | None = None   # state, category, goal x dm, goal y dm
@@ -147,7 +150,7 @@ class Pereira(Scheme):
             "places_sent", "gates_sent", "claims_sent", "claims_retracted", "intents_sent", "summaries_sent",
             "records_pushed", "records_heard_new", "waypoints_left_to_team", "waypoints_taken_back",
             "choices_yielded", "records_dropped_by_link", "claims_on_stopping", "transit_choices",
-            "waypoints_seen_by_team", "claimed_waypoints_kept"), 0)
+            "waypoints_seen_by_team", "claimed_waypoints_kept", "places_skipped"), 0)
 
     def tasks(self) -> list[Task]:
         p = self.s.params
@@ -169,7 +172,13 @@ class Pereira(Scheme):
             self.counts["records_dropped_by_link"] += 1
 
     def on_travel(self, pose: OdometrySample, now_us: int) -> None:
-        """A place every d_build_m of travel, with the disc the robot's map shows free."""
+        """A place every d_build_m of travel, with the disc the robot's map shows free; none
+        where the region graph holds a place within pereira_place_skip_m already (a robot
+        driving ground the team has driven tells no one anything, and every place it adds
+        changes the region's signature, which undoes the claims on it). The first place on
+        such ground is sent (its trajectory edge joins the robot's last place to the old
+        ones); leaving it, the robot sends the last place it passed over first, so its new
+        places join the graph where the old ones lie and no trajectory edge spans the gap."""
         self._own_places.on_travel(pose)
         x_m, y_m = pose.x_m, pose.y_m
         if not self._milestones.due(x_m, y_m) or not self.s.has_planned():
@@ -181,12 +190,26 @@ class Pereira(Scheme):
         if i0 >= i1 or j0 >= j1:
             return
         clear = place_clear_dm(lm.state_of(i0, i1, j0, j1), lm.row0 + i0, lm.col0 + j0, res, x_m, y_m, self.pp)
+        self._milestones.mark(x_m, y_m)
+        skip_dm = self.s.params.pereira_place_skip_m * 10
+        covered = skip_dm > 0 and len(self.store.graph().places_within(x_m * 10, y_m * 10, skip_dm)) > 0
+        was_covered, self._on_covered_ground = self._on_covered_ground, covered
+        if covered and was_covered:
+            self._passed_over = (x_m, y_m, clear)
+            self._last_place_oseq = None
+            self.counts["places_skipped"] += 1
+            return
+        if self._passed_over is not None:
+            self._send_place(*self._passed_over)
+            self._passed_over = None
+        self._send_place(x_m, y_m, clear)
+
+    def _send_place(self, x_m: float, y_m: float, clear_dm: int) -> None:
         oseq = self._next_oseq()
         gap = (oseq - self._last_place_oseq) % (1 << OSEQ_BITS) if self._last_place_oseq is not None else 0
         link_back = gap if 0 < gap <= LINK_BACK_MAX else 0
-        self._publish("place", Place(self.s.robot_id, oseq, dm(x_m), dm(y_m), clear, link_back), PRIORITY_MOTION)
+        self._publish("place", Place(self.s.robot_id, oseq, dm(x_m), dm(y_m), clear_dm, link_back), PRIORITY_MOTION)
         self._last_place_oseq = oseq
-        self._milestones.mark(x_m, y_m)
 
     def _task_gates(self, now_us: int) -> None:
         """Gates in the robot's own window; one record for each newly confirmed gate the
@@ -356,6 +379,7 @@ class Pereira(Scheme):
         end-game safety net: a claim made for the region as its claimant knew it must not
         leave a hole)."""
         items = self.s.waypoints.items
+        self._last_resort = set()
         if not items:
             return
         others = self._explored_by_others()
@@ -372,6 +396,8 @@ class Pereira(Scheme):
             for k in self._out_of_teammates_reach(graph, items, claimed):
                 claimed[k] = False
                 self.counts["claimed_waypoints_kept"] += 1
+                if self.s.params.pereira_unseen_claimed_last:
+                    self._last_resort.add((items[k].x_m, items[k].y_m))
         left = [w for w, c in zip(items, claimed) if c]
         alone = not self.s.roster.any_active(view.now_us)
         seen = self._seen_by_team(graph, view.sight, items, claimed)
@@ -560,6 +586,8 @@ class Pereira(Scheme):
             clash = r is not None and r in heading and \
                 conflicts(math.hypot(c.x_m - view.x_m, c.y_m - view.y_m), me, heading[r])
             c.rank = cat + (CONFLICT_RANK if clash else 0)
+            if (c.x_m, c.y_m) in self._last_resort:
+                c.rank += 2 * CONFLICT_RANK
             if not p.pereira_by_cost:
                 c.gain, c.gain_cost_offset_m = c.e_bit, p.pereira_cost_offset_m
             self.counts["choices_yielded"] += int(clash)
