@@ -1,5 +1,6 @@
 """Pereira's planning stage (Pereira.filter_waypoints): waypoints in a region a teammate
-claimed explored are left to it; waypoints the teammates' places saw are dropped; a robot
+claimed explored are left to it if a teammate's place came within d_cam_m of them (else
+kept, ranked last); waypoints the teammates' places saw are dropped; a robot
 with nothing else left heads for a region a teammate heads for (transit), and with
 pereira_take_back (or, once no teammate explores, pereira_take_back_alone) takes back what
 is still unseen from every teammate's place.

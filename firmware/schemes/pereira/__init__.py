@@ -62,7 +62,10 @@ Not yet, or not as the spec says:
   (pereira_claims_near_only): the label grid carries a claimed region's label through a
   doorway no gate marks into rooms no teammate came near, and without this test their
   waypoints were left to the claim and the room unseen (maze_b seed 5: a fifth of the
-  maze, every robot stopped by itself);
+  maze, every robot stopped by itself). Those kept are ranked after every other waypoint
+  (pereira_unseen_claimed_last);
+- with pereira_place_skip_m > 0 (off by default) no place is sent where the region graph
+  holds one that close; the spec sends one every d_place;
 - the end-game safety net (the spec's) is off by default. Before the test above, a room no
   one entered was left unseen without it; with it for the last robot exploring
   (pereira_take_back_alone) that room is covered, but the last robot also retraces its

@@ -371,8 +371,8 @@ class Pereira(Scheme):
     def filter_waypoints(self, view: PlanningView) -> None:
         """Waypoints in regions a teammate's claim calls explored are left to the team (A5,
         A6) if a teammate's place lies within d_cam_m of them (pereira_claims_near_only,
-        _out_of_teammates_reach); the others are dropped where the teammates' places saw what they promise
-        (_seen_by_team). A robot with nothing else worth heading for, while teammates
+        _out_of_teammates_reach; the rest are kept and ranked last); the others are dropped
+        where the teammates' places saw what they promise (_seen_by_team). A robot with nothing else worth heading for, while teammates
         explore, keeps the one on its way to a region a teammate is heading for (_transit);
         with none and pereira_take_back, or with no teammate exploring any more and
         pereira_take_back_alone, it takes back those worth it (_worth_taking_back; the spec's
