@@ -95,8 +95,9 @@ Not yet, or not as the spec says:
   file for it yet): only missions (`lorascout run`, `sweep`) hand it over;
 - paths over the region graph (a transit is chosen along the places' edges, but driven on
   the robot's own map and places, like the no-sharing baseline's), the pereira-grid variant, the region overlay as filled areas, a numba fold,
-  and the rest of the acceptance grid (the Intel lab over 10 seeds, the ideal link,
-  pereira-oracle, ranges, loss; maze_a, maze_b and the cave over eu868-g3 ran);
+  and the rest of the acceptance grid (the Intel lab over 10 seeds, the ideal link on
+  maze_b and the Intel lab, pereira-oracle, ranges, loss; maze_a, maze_b and the cave over
+  eu868-g3 and maze_a and the cave over the ideal link ran);
 - a finished robot no longer judges regions, so a region it claimed that grows a
   teammate's place (its signature changes) is never claimed again, and the teammate
   explores it anew (the paper's scaling experiment on tests/data/pereira8: see the
