@@ -372,8 +372,9 @@ class Pereira(Scheme):
         """Waypoints in regions a teammate's claim calls explored are left to the team (A5,
         A6) if a teammate's place lies within d_cam_m of them (pereira_claims_near_only,
         _out_of_teammates_reach; the rest are kept and ranked last); the others are dropped
-        where the teammates' places saw what they promise (_seen_by_team). A robot with nothing else worth heading for, while teammates
-        explore, keeps the one on its way to a region a teammate is heading for (_transit);
+        where the teammates' places saw what they promise (_seen_by_team). A robot with
+        nothing else worth heading for, while teammates explore, keeps the one on its way to
+        a region a teammate is heading for (_transit);
         with none and pereira_take_back, or with no teammate exploring any more and
         pereira_take_back_alone, it takes back those worth it (_worth_taking_back; the spec's
         end-game safety net: a claim made for the region as its claimant knew it must not
@@ -430,13 +431,8 @@ class Pereira(Scheme):
         walks this robot's free cells from a region's places as far as they reach: through a
         doorway no gate marks it carries a claimed region's label into rooms the claimant
         never saw (maze_b seed 5: a wing, a fifth of the maze)."""
-        theirs, tree = self._teammates_places(graph)
-        ask = np.flatnonzero(claimed)
-        if tree is None:
-            return ask.tolist()
-        xy = np.array([(items[k].x_m, items[k].y_m) for k in ask.tolist()], np.float64).reshape(-1, 2)
-        gap_m = tree.query(xy, distance_upper_bound=self.s.params.d_cam_m)[0]
-        return ask[gap_m == math.inf].tolist()
+        reach_m = self.s.params.d_cam_m
+        return [k for k, c in enumerate(claimed) if c and not self._teammate_stood_near(graph, items[k], reach_m)]
 
     def _seen_by_team(self, graph: RegionGraph, sight: np.ndarray, items: list, claimed: list[bool]) -> list[bool]:
         """Which waypoints in regions no teammate claimed its teammates have seen: in the
