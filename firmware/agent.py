@@ -124,6 +124,7 @@ class ExplorerAgent:
             send=self._send if self.link is not None else None, mesh=self.hal.mesh if self.hal.has("mesh") else None,
             last_scan_binned=self._binned_last_scan, has_planned=lambda: self._last_plan_us >= 0,
             queued=self.link.queued if self.link is not None else (lambda rtype: 0),
+            withdraw=self.link.withdraw if self.link is not None else (lambda key: False),
             on_air_until_us=self.link.on_air_until_us if self.link is not None else (lambda: 0),
             current_target=lambda: self.targets.target, pose_at=self.pose.pose_at,
             uwb=self.hal.uwb if self.hal.has("uwb") else None, aoa=self.hal.aoa if self.hal.has("aoa") else None,

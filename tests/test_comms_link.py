@@ -88,6 +88,17 @@ def test_key_supersedes_older_record():
     assert [v["x_cm"] for _, v in decode_frame(radio.sent[0][1]).frame.records] == [2]
 
 
+def test_withdraw_takes_a_queued_record_back_by_its_key():
+    prof = profile("eu868-g3")
+    link, radio = Link(1, prof), FakeRadio(prof)
+    link.enqueue("topo", topo(1), key=("push", 1))
+    link.enqueue("topo", topo(2), key=("push", 2))
+    assert link.withdraw(("push", 1)) and not link.withdraw(("push", 1)) and not link.withdraw("nothing")
+    assert link.queue_len == 1
+    step(link, radio, 0)
+    assert len(radio.sent) == 1 and len(decode_frame(radio.sent[0][1]).frame.records) == 1
+
+
 def test_queue_full_and_too_large():
     prof = profile("eu868-g3")
     link = Link(1, prof, queue_limit=2)

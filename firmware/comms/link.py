@@ -204,6 +204,15 @@ class LinkLayer:
         self._order += 1
         return True
 
+    def withdraw(self, key: Hashable) -> bool:
+        """Take back the queued record with this key before it goes on the air (a repair
+        another robot has just sent); True if one was waiting."""
+        for i, e in enumerate(self._queue):
+            if e[4] == key:
+                del self._queue[i]
+                return True
+        return False
+
     def received(self) -> list[tuple[int, str, dict[str, int]]]:
         """Records received since the last call: (frame sender id, record type, values)."""
         out, self._rx = self._rx, []

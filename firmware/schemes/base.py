@@ -81,6 +81,7 @@ class Services:
     last_scan_binned: Callable[[], BinnedScan]   # the newest scan in world-frame bins
     has_planned: Callable[[], bool]              # a planning cycle has run (waypoints exist)
     queued: Callable[[str], int] = lambda rtype: 0          # records of a type waiting on the link
+    withdraw: Callable[[Hashable], bool] = lambda key: False   # take a queued record back by its key
     on_air_until_us: Callable[[], int] = lambda: 0           # when this robot's last frame ends on the air
     current_target: Callable[[], Target | None] = lambda: None   # where the robot is heading
     # This robot's pose (x_m, y_m, yaw_rad) at a time, for samples taken then (services.pose).

@@ -148,7 +148,7 @@ class Pereira(Scheme):
         self._woken_us = 0
         self.counts = dict.fromkeys((
             "places_sent", "gates_sent", "claims_sent", "claims_retracted", "intents_sent", "summaries_sent",
-            "records_pushed", "records_heard_new", "waypoints_left_to_team", "waypoints_taken_back",
+            "records_pushed", "pushes_withdrawn", "records_heard_new", "waypoints_left_to_team", "waypoints_taken_back",
             "choices_yielded", "records_dropped_by_link", "claims_on_stopping", "transit_choices",
             "waypoints_seen_by_team", "claimed_waypoints_kept", "places_skipped"), 0)
 
@@ -239,6 +239,8 @@ class Pereira(Scheme):
     # --- what the robot hears ---------------------------------------------------------
     def on_record(self, rtype: str, values: Mapping[str, int], now_us: int) -> None:
         me = self.s.robot_id
+        if rtype in _OWN_TYPES:
+            self._cancel_push(values["sender_id"], values["oseq"])
         if values["sender_id"] == me:
             return      # own records relayed back: this robot's view of them is its own (loop rule)
         if values["sender_id"] in (EMPTY_ORIGIN, ORACLE_ORIGIN):
@@ -266,7 +268,6 @@ class Pereira(Scheme):
                 self._outbox.setdefault((record.sender_id, record.oseq), (name, record))
             return
         record = typed(rtype, values)
-        self._outbox.pop((record.sender_id, record.oseq), None)     # someone else pushed it
         self.holdings.add(rtype, record)
         if self.store.add(record):
             self.counts["records_heard_new"] += 1
@@ -299,6 +300,14 @@ class Pereira(Scheme):
             if not s.send(name, values_of(record), 0, key=("push", *key)):
                 self.counts["records_dropped_by_link"] += 1
             room -= 1
+
+    def _cancel_push(self, origin: int, oseq: int) -> None:
+        """Someone else sent this record: a push of it still waiting here, in the outbox or
+        on the link until this robot's slot comes, would repeat what the teammate that
+        asked for it has just been sent. If that copy missed it, its next summary asks again."""
+        self._outbox.pop((origin, oseq), None)
+        if self.s.withdraw(("push", origin, oseq)):
+            self.counts["pushes_withdrawn"] += 1
 
     def has_news(self) -> bool:
         """Own or pushed records waiting, on the air until less than NEWS_READ_S ago, or
