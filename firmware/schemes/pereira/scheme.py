@@ -141,7 +141,9 @@ class Pereira(Scheme):
         self._held_at_heard: dict[int, dict[int, int]] = {}  # teammate -> what was held when its last summary came
         # teammate -> (upto of this robot's records its last summary gave, when heard)
         self._mine_held_by: dict[int, tuple[int, int]] = {}
-        self._left_labels: set[int | None] = set()           # regions of waypoints left to the team this cycle
+        # Regions of waypoints this cycle dropped on teammates' word (a claim) or on a model of
+        # what their places saw: not this robot's own judgement, so not a claim of its own.
+        self._left_labels: set[int | None] = set()
         self._outbox_us = self._news_until_us = 0
         self._finished = False
         self._retracted = False                              # a teammate took a claim back since wake_up looked
@@ -411,6 +413,9 @@ class Pereira(Scheme):
         left = [w for w, c in zip(items, claimed) if c]
         alone = not self.s.roster.any_active(view.now_us)
         seen = self._seen_by_team(graph, view.sight, items, claimed)
+        if any(seen) and not others:
+            self._label_grid(graph, view.sight, view.now_us)
+            labels = self._labels(graph, [(w.x_m, w.y_m) for w in items])
         own = [w for w, c, sn in zip(items, claimed, seen) if not c and not sn]
         transit = None
         if left and not alone and self.s.params.pereira_transit and \
@@ -424,6 +429,7 @@ class Pereira(Scheme):
         for w, r, c, sn in zip(items, labels, claimed, seen):
             if sn:
                 self.counts["waypoints_seen_by_team"] += 1
+                self._left_labels.add(r)
             elif not c:
                 kept.append(w)
             elif next(back) or w is transit:
@@ -638,7 +644,10 @@ class Pereira(Scheme):
         lm, sight = self.s.local_map, self._sight
         items = self.s.waypoints.items
         # Waypoints left to the team count: a region is not explored for this robot because
-        # a teammate says so (else one claim would make every robot claim it too).
+        # a teammate says so (else one claim would make every robot claim it too), nor
+        # because a model says the teammates' places saw what its waypoints promise (their
+        # rays pass through what this robot's map shows unknown: walls it never saw
+        # included). A claim is a report others trust.
         with_waypoints = set(self._labels(graph, [(w.x_m, w.y_m) for w in items])) | self._left_labels
         self._left_labels = set()
         clean: dict[tuple[int, ...], int] = {}
