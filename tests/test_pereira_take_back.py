@@ -19,6 +19,7 @@ from firmware.schemes.pereira.records import DIR_CODES, INTENT_STATES, Claim, Ga
 from firmware.services.local_map import LocalMap
 from firmware.services.targets import Candidate
 from firmware.services.waypoints import Waypoint
+from hal.samples import OdometrySample
 from host_tools.mission import MissionConfig, run_mission
 from tests.doubles import PlannerRig
 from tests.doubles import paint_box as paint
@@ -209,6 +210,42 @@ def test_no_transit_where_no_teammate_heads_where_the_robot_has_been_when_alone_
     for rig in (no_one_heads_east, heads_west, near_my_places, alone, off, all_claimed):
         assert _filter(rig, (7.0, 20.0), AT_THE_END) == []
         assert rig.stat("transit_choices") == 0
+
+
+def _claims_after_two_cycles(east_end_walled: bool) -> PlannerRig:
+    """Teammate 1 drove the corridor to x = 34 m and claimed nothing; this robot plans twice
+    at (20, 20) (a region is explored for it after pereira_explored_cycles clean cycles).
+    Every waypoint near a teammate's place counts as seen by the team here (what the view
+    leaves unseen is another test's): this one is about the claim that follows."""
+    params = dataclasses.replace(P, pereira_revive_left_bit=1e9)
+    local_map = LocalMap(params, 20.0, 20.0)
+    local_map.logodds[:] = 0.0
+    paint(local_map, 5.0, 35.0, 19.0, 21.0, P.logodds_min)
+    paint(local_map, 5.0, 35.0, 18.8, 18.9, P.logodds_max)
+    paint(local_map, 5.0, 35.0, 21.1, 21.2, P.logodds_max)
+    paint(local_map, 4.8, 4.9, 18.8, 21.2, P.logodds_max)
+    if east_end_walled:
+        paint(local_map, 35.1, 35.2, 18.8, 21.2, P.logodds_max)
+    rig = PlannerRig(local_map, "pereira", ME, params)
+    for k, x in enumerate(range(6, 35)):
+        rig.scheme.on_record("place", values_of(Place(OTHER, k + 1, x * 10, 200, 8, 1 if k else 0)), NOW_US)
+    rig.roster.heard_at(OTHER, 30.0, 20.0, NOW_US)
+    for cycle in range(P.pereira_explored_cycles):
+        now_us = NOW_US + cycle * 1_000_000
+        rig.plan(20.0, 20.0, now_us)
+        rig.scheme.after_plan(OdometrySample(now_us, 20.0, 20.0, 0.0, 0.0, 0.0), now_us)
+    return rig
+
+
+def test_a_robot_claims_no_region_where_it_dropped_waypoints_on_the_teammates_view():
+    """The open east end's waypoints are dropped: the teammate's places saw what they promise,
+    by the model (its rays pass through the unknown this robot's map shows there). That is
+    not this robot's judgement, so no claim; with the end walled off there is nothing to
+    drop and the corridor is claimed."""
+    open_end = _claims_after_two_cycles(east_end_walled=False)
+    assert open_end.stat("waypoints_seen_by_team") > 0 and open_end.stat("claims_sent") == 0
+    walled = _claims_after_two_cycles(east_end_walled=True)
+    assert walled.stat("waypoints_seen_by_team") == 0 and walled.stat("claims_sent") == 1
 
 
 def _claims_on_stopping(places_x_m: list[float], frontiers_left_xy: list[tuple[float, float]]) -> int:
