@@ -269,6 +269,11 @@ class ExplorationParams:
     # promise (the take-back's test): claims come late, or never for a region explored in parts.
     pereira_team_view: bool = _p(True, 'bool', None, None,
                                  "waypoints in unclaimed regions that teammates' places saw are dropped")
+    # A teammate's place sees its own side of a gate: the view's rays pass through what this
+    # robot's map shows unknown, walls it never saw included, so without this a teammate in a
+    # corridor "sees" the rooms off it.
+    pereira_gates_block_view: bool = _p(True, 'bool', None, None,
+                                        "the teammates' places' view stops at gates")
     # A robot with nothing else left heads for the regions teammates are heading for, along
     # the places they left (the region graph's edges), instead of stopping while they work on.
     pereira_transit: bool = _p(True, 'bool', None, None,

@@ -16,12 +16,15 @@ from firmware.services.local_map import grid_cells_of
 
 
 def unseen_after_team_view_bit(sight: np.ndarray, row0: int, col0: int, waypoints_xy: np.ndarray,
-                               places_xy: np.ndarray, params: ExplorationParams) -> np.ndarray:
+                               places_xy: np.ndarray, params: ExplorationParams,
+                               view_walls: np.ndarray | None = None) -> np.ndarray:
     """Per waypoint (rows of x, y in metres, all on the grid): the unknown it would show
     (observable_unknown over info_rays within d_cam_m), in bits, with the cells that
     team_view_rays cast from the teammates' places (rows of x, y) reach marked as seen. The
     grid is a sight layer (the window's, LocalMap.layers) whose cell (0, 0) is the global
-    cell (row0, col0). Rays stop at walls it shows and pass through its unknown cells."""
+    cell (row0, col0). Rays stop at walls it shows and pass through its unknown cells;
+    the teammates' rays stop at view_walls too (cells of the grid's shape, if given; a
+    place's own cell never blocks)."""
     p = params
     wxy = np.asarray(waypoints_xy, np.float64).reshape(-1, 2)
     if not len(wxy):
@@ -41,8 +44,14 @@ def unseen_after_team_view_bit(sight: np.ndarray, row0: int, col0: int, waypoint
         d2 = ((pxy[:, None, :] - wxy[None, :, :]) ** 2).sum(axis=2).min(axis=1)
         pxy = pxy[d2 <= (2.0 * p.d_cam_m + 1.0) ** 2]
     ij, inside = grid_cells_of(pxy, row0, col0, sight.shape, p.resolution_m)
+    pi, pj = np.ascontiguousarray(ij[inside, 0]), np.ascontiguousarray(ij[inside, 1])
+    place_sight = sight
+    if view_walls is not None:
+        walls = view_walls.copy()
+        walls[pi, pj] = False
+        place_sight = np.where(walls, np.uint8(kernels.OCCUPIED), sight).astype(sight.dtype)
     seen = np.zeros(sight.shape, bool)
-    kernels.mark_visible(sight, ij[inside, 0], ij[inside, 1], p.team_view_rays, reach_cells, counted, seen)
+    kernels.mark_visible(place_sight, pi, pj, p.team_view_rays, reach_cells, counted, seen)
     team_sight = sight.copy()
     team_sight[seen] = kernels.SEEN_BY_TEAM
     return kernels.observable_unknown(team_sight, wi, wj, p.info_rays, reach_cells) * p.entropy_per_cell_bit

@@ -92,13 +92,10 @@ def _draw_segments(blocked: np.ndarray, segments_cm: np.ndarray, row0: int, col0
         blocked[ii[ok], jj[ok]] = True
 
 
-def label_grid(sight: np.ndarray, row0: int, col0: int, res_m: float, graph: RegionGraph) -> np.ndarray:
-    """The region index (of graph.regions) of every cell of the window, NONE where none."""
-    n_r, n_c = sight.shape
-    label = np.full((n_r, n_c), NONE, np.int32)
-    if not len(graph.places):
-        return label
-    res_dm = res_m * 10.0
+def gate_cells(shape: tuple[int, int], row0: int, col0: int, res_m: float, graph: RegionGraph) -> np.ndarray:
+    """The cells of a window (anchored at global cell (row0, col0)) that the graph's gate
+    segments cross, as 4-connected lines."""
+    n_r, n_c = shape
     blocked = np.zeros((n_r, n_c), bool)
     seg = graph.segments_cm
     if len(seg):
@@ -108,7 +105,18 @@ def label_grid(sight: np.ndarray, row0: int, col0: int, res_m: float, graph: Reg
         near = (np.maximum(seg[:, 0], seg[:, 2]) >= lo_x) & (np.minimum(seg[:, 0], seg[:, 2]) <= hi_x) & \
                (np.maximum(seg[:, 1], seg[:, 3]) >= lo_y) & (np.minimum(seg[:, 1], seg[:, 3]) <= hi_y)
         _draw_segments(blocked, seg[near], row0, col0, res_m)
-    free = (sight == kernels.FREE) & ~blocked
+    return blocked
+
+
+def label_grid(sight: np.ndarray, row0: int, col0: int, res_m: float, graph: RegionGraph) -> np.ndarray:
+    """The region index (of graph.regions) of every cell of the window, NONE where none."""
+    n_r, n_c = sight.shape
+    label = np.full((n_r, n_c), NONE, np.int32)
+    if not len(graph.places):
+        return label
+    res_dm = res_m * 10.0
+    seg = graph.segments_cm
+    free = (sight == kernels.FREE) & ~gate_cells(sight.shape, row0, col0, res_m, graph)
     pl = graph.places
     pi = np.floor(pl[:, 1] / res_dm).astype(np.int64) - row0
     pj = np.floor(pl[:, 0] / res_dm).astype(np.int64) - col0

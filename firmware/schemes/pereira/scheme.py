@@ -42,7 +42,7 @@ from firmware.schemes.pereira.choice import CONFLICT_RANK, OTHER, Whereabouts, c
 from firmware.schemes.pereira.gates import GateTracker, detect_gates, place_clear_dm
 from firmware.schemes.pereira.gossip import Holdings
 from firmware.schemes.pereira.labels import NONE as NO_LABEL
-from firmware.schemes.pereira.labels import label_grid
+from firmware.schemes.pereira.labels import gate_cells, label_grid
 from firmware.schemes.pereira.params import with_tuning
 from firmware.schemes.pereira.records import (DIALECT, EMPTY_ORIGIN, GOAL_DIST_MAX_DM, ORACLE_ORIGIN, OSEQ_BITS,
                                               SUMMARY_SLOTS, Claim, Gate, Intent, Place, Summary, dm, encode,
@@ -473,10 +473,19 @@ class Pereira(Scheme):
         ask = np.array([k for k in ask.tolist() if (items[k].x_m, items[k].y_m) != held], np.int64)
         if len(ask):
             lm = self.s.local_map
-            left_bit = unseen_after_team_view_bit(sight, lm.row0, lm.col0, xy[ask], theirs, p)
+            left_bit = unseen_after_team_view_bit(sight, lm.row0, lm.col0, xy[ask], theirs, p,
+                                                  self._view_walls(graph, sight))
             for k, bits in zip(ask.tolist(), left_bit.tolist()):
                 out[k] = bits < p.pereira_revive_left_bit
         return out
+
+    def _view_walls(self, graph: RegionGraph, sight: np.ndarray) -> np.ndarray | None:
+        """What stops the teammates' places' view besides the walls this robot mapped: the
+        gates (pereira_gates_block_view), or nothing."""
+        if not self.s.params.pereira_gates_block_view:
+            return None
+        lm = self.s.local_map
+        return gate_cells(sight.shape, lm.row0, lm.col0, self.s.params.resolution_m, graph)
 
     def _teammates_places(self, graph: RegionGraph) -> tuple[np.ndarray, cKDTree | None]:
         """The teammates' places in this graph (rows of x, y in metres) and their k-d tree
@@ -567,7 +576,8 @@ class Pereira(Scheme):
         ask = np.nonzero(np.array(rich) & inside)[0]
         if len(ask):
             theirs, _tree = self._teammates_places(graph)
-            left_bit = unseen_after_team_view_bit(sight, lm.row0, lm.col0, xy[ask], theirs, p)
+            left_bit = unseen_after_team_view_bit(sight, lm.row0, lm.col0, xy[ask], theirs, p,
+                                                  self._view_walls(graph, sight))
             for k, bits in zip(ask.tolist(), left_bit.tolist()):
                 out[k] = bits >= p.pereira_revive_left_bit
         return out
