@@ -259,7 +259,9 @@ class ExplorationParams:
     # robot stopped by itself; docs/pereira/claims-near-only/).
     pereira_claims_near_only: bool = _p(True, 'bool', None, None,
                                         "a waypoint in a region others claimed is left to them only if a "
-                                        "teammate's place lies within d_cam_m of it")
+                                        "teammate's place lies within pereira_claim_reach_m of it")
+    pereira_claim_reach_m: float = _p(9.5, 'm', 0.0, 100.0,
+                                      "... this close (d_cam_m: what a teammate's LiDAR may have seen)")
     # ... and ranked after every other: a robot goes there once nothing else is left, when a
     # teammate may have come near (then they are left to the claim after all). maze_b seed 5:
     # p_max 338 m ranked last, 587 m ranked by their category.
@@ -267,7 +269,10 @@ class ExplorationParams:
                                            "those waypoints are ranked after every other")
     # Waypoints in regions no one claimed are dropped when the teammates' places saw what they
     # promise (the take-back's test): claims come late, or never for a region explored in parts.
-    pereira_team_view: bool = _p(True, 'bool', None, None,
+    # Off: that is a model of a teammate's view through what this robot's map shows unknown,
+    # not a teammate's report (a claim); on the Intel lab it left rooms off corridors unseen
+    # by all (coverage 0.97-0.99 with it; docs/pereira/intel-gates/).
+    pereira_team_view: bool = _p(False, 'bool', None, None,
                                  "waypoints in unclaimed regions that teammates' places saw are dropped")
     # A teammate's place sees its own side of a gate: the view's rays pass through what this
     # robot's map shows unknown, walls it never saw included, so without this a teammate in a

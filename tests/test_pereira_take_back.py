@@ -189,7 +189,8 @@ def test_a_teammates_places_do_not_see_past_a_gate():
     room to a corridor)."""
     at_the_door = (16.0, 20.6)
     for gates_block, kept in ((True, [at_the_door]), (False, [])):
-        params = dataclasses.replace(P, pereira_gates_block_view=gates_block, pereira_revive_left_bit=5000.0)
+        params = dataclasses.replace(P, pereira_team_view=True, pereira_gates_block_view=gates_block,
+                                     pereira_revive_left_bit=5000.0)
         local_map = LocalMap(params, 20.0, 20.0)
         local_map.logodds[:] = 0.0
         paint(local_map, 5.0, 35.0, 19.0, 21.0, params.logodds_min)
@@ -244,7 +245,7 @@ def _claims_after_two_cycles(east_end_walled: bool) -> PlannerRig:
     at (20, 20) (a region is explored for it after pereira_explored_cycles clean cycles).
     Every waypoint near a teammate's place counts as seen by the team here (what the view
     leaves unseen is another test's): this one is about the claim that follows."""
-    params = dataclasses.replace(P, pereira_revive_left_bit=1e9)
+    params = dataclasses.replace(P, pereira_team_view=True, pereira_revive_left_bit=1e9)
     local_map = LocalMap(params, 20.0, 20.0)
     local_map.logodds[:] = 0.0
     paint(local_map, 5.0, 35.0, 19.0, 21.0, P.logodds_min)
