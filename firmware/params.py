@@ -269,10 +269,7 @@ class ExplorationParams:
                                            "those waypoints are ranked after every other")
     # Waypoints in regions no one claimed are dropped when the teammates' places saw what they
     # promise (the take-back's test): claims come late, or never for a region explored in parts.
-    # Off: that is a model of a teammate's view through what this robot's map shows unknown,
-    # not a teammate's report (a claim); on the Intel lab it left rooms off corridors unseen
-    # by all (coverage 0.97-0.99 with it; docs/pereira/intel-gates/).
-    pereira_team_view: bool = _p(False, 'bool', None, None,
+    pereira_team_view: bool = _p(True, 'bool', None, None,
                                  "waypoints in unclaimed regions that teammates' places saw are dropped")
     # A teammate's place sees its own side of a gate: the view's rays pass through what this
     # robot's map shows unknown, walls it never saw included, so without this a teammate in a
