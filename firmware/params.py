@@ -259,9 +259,7 @@ class ExplorationParams:
     # robot stopped by itself; docs/pereira/claims-near-only/).
     pereira_claims_near_only: bool = _p(True, 'bool', None, None,
                                         "a waypoint in a region others claimed is left to them only if a "
-                                        "teammate's place lies within pereira_claim_reach_m of it")
-    pereira_claim_reach_m: float = _p(9.5, 'm', 0.0, 100.0,
-                                      "... this close (d_cam_m: what a teammate's LiDAR may have seen)")
+                                        "teammate's place lies within d_cam_m of it")
     # ... and ranked after every other: a robot goes there once nothing else is left, when a
     # teammate may have come near (then they are left to the claim after all). maze_b seed 5:
     # p_max 338 m ranked last, 587 m ranked by their category.

@@ -446,7 +446,7 @@ class Pereira(Scheme):
         walks this robot's free cells from a region's places as far as they reach: through a
         doorway no gate marks it carries a claimed region's label into rooms the claimant
         never saw (maze_b seed 5: a wing, a fifth of the maze)."""
-        reach_m = self.s.params.pereira_claim_reach_m
+        reach_m = self.s.params.d_cam_m
         return [k for k, c in enumerate(claimed) if c and not self._teammate_stood_near(graph, items[k], reach_m)]
 
     def _seen_by_team(self, graph: RegionGraph, sight: np.ndarray, items: list, claimed: list[bool]) -> list[bool]:
