@@ -54,7 +54,13 @@ Not yet, or not as the spec says:
 - waypoints in regions no claim covers are dropped where what they promise was in view of
   the teammates' places (pereira_team_view: fewer than pereira_revive_left_bit unseen once
   a LiDAR at every teammate's place counts as having seen): A2's claims come late, and a
-  region several robots explored in parts may never be claimed by any;
+  region several robots explored in parts may never be claimed by any. That view is a
+  model: its rays pass through what the robot's map shows unknown, so they stop at gates
+  (pereira_gates_block_view: a teammate in a corridor does not see the rooms off it), and a
+  robot claims no region where it dropped waypoints on it (a claim is a report teammates
+  trust). It still leaves pockets on the Intel lab; without it (team_view off) the paper's
+  eight-region map can end with both robots stopped at 0.70 (README, "Pereira et al.:
+  the Intel lab");
 - a robot with nothing else worth heading for while teammates explore keeps the waypoint
   on its shortest way (along the places' edges) to a region a teammate's intent heads for
   (pereira_transit), mapping its way through claimed regions, instead of stopping;
@@ -89,15 +95,15 @@ Not yet, or not as the spec says:
   that teammate's previous summary came: summaries are seconds old when heard, and in range
   with nothing lost the team pushed records everyone had just heard;
 - a done robot sends one done intent, not one every 30 s (the heartbeat says done);
-- pushes are cancelled when the record is overheard only while they wait in the scheme's
-  outbox (at most PUSH_BACKLOG on the link), there is no LinkLayer.cancel;
+- a push is cancelled when another robot sends the record first, from the scheme's outbox
+  or from the link, where it waits for the robot's TDMA slot (LinkLayer.withdraw);
 - the oracle's region map is not loaded on a real robot (host_tools/robot_config has no
   file for it yet): only missions (`lorascout run`, `sweep`) hand it over;
 - paths over the region graph (a transit is chosen along the places' edges, but driven on
   the robot's own map and places, like the no-sharing baseline's), the pereira-grid variant, the region overlay as filled areas, a numba fold,
-  and the rest of the acceptance grid (the Intel lab over 10 seeds, the ideal link on
-  maze_b and the Intel lab, pereira-oracle, ranges, loss; maze_a, maze_b and the cave over
-  eu868-g3 and maze_a and the cave over the ideal link ran);
+  and the rest of the acceptance grid (the ideal link on maze_b and the Intel lab,
+  pereira-oracle, ranges, loss; the four maps over eu868-g3 and maze_a and the cave over
+  the ideal link ran);
 - a finished robot no longer judges regions, so a region it claimed that grows a
   teammate's place (its signature changes) is never claimed again, and the teammate
   explores it anew (the paper's scaling experiment on tests/data/pereira8: see the

@@ -383,7 +383,8 @@ class Pereira(Scheme):
         """Waypoints in regions a teammate's claim calls explored are left to the team (A5,
         A6) if a teammate's place lies within d_cam_m of them (pereira_claims_near_only,
         _out_of_teammates_reach; the rest are kept and ranked last); the others are dropped
-        where the teammates' places saw what they promise (_seen_by_team). A robot with
+        where the teammates' places saw what they promise (_seen_by_team; their view stops at
+        gates), and their regions are then not claimed by this robot. A robot with
         nothing else worth heading for, while teammates explore, keeps the one on its way to
         a region a teammate is heading for (_transit);
         with none and pereira_take_back, or with no teammate exploring any more and
