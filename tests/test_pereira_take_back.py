@@ -180,6 +180,25 @@ def test_waypoints_teammates_places_saw_are_dropped_claimed_or_not():
         assert rig.stat("waypoints_seen_by_team") == (1 if team_view else 0)
 
 
+DROVE_TO_34_M = [float(x) for x in range(6, 35)]
+
+
+def _corridor_rig(params: ExplorationParams, walls: list[tuple[float, float, float, float]]) -> PlannerRig:
+    """The corridor's floor and south wall, the given walls (x0, x1, y0, y1 in m), and
+    teammate 1's places along it to x = 34 m; teammate 1 active."""
+    local_map = LocalMap(params, 20.0, 20.0)
+    local_map.logodds[:] = 0.0
+    paint(local_map, 5.0, 35.0, 19.0, 21.0, params.logodds_min)
+    paint(local_map, 5.0, 35.0, 18.8, 18.9, params.logodds_max)
+    for x0, x1, y0, y1 in walls:
+        paint(local_map, x0, x1, y0, y1, params.logodds_max)
+    rig = PlannerRig(local_map, "pereira", ME, params)
+    for k, x in enumerate(DROVE_TO_34_M):
+        rig.scheme.on_record("place", values_of(Place(OTHER, k + 1, round(x * 10), 200, 8, 1 if k else 0)), NOW_US)
+    rig.roster.heard_at(OTHER, 30.0, 20.0, NOW_US)
+    return rig
+
+
 def test_a_teammates_places_do_not_see_past_a_gate():
     """A room north of the corridor (x 14 to 18 m, unknown to this robot), its door at x 15.5
     to 16.5 m with a gate across it. Teammate 1 drove the corridor. The waypoint at the door
@@ -191,19 +210,10 @@ def test_a_teammates_places_do_not_see_past_a_gate():
     for gates_block, kept in ((True, [at_the_door]), (False, [])):
         params = dataclasses.replace(P, pereira_team_view=True, pereira_gates_block_view=gates_block,
                                      pereira_revive_left_bit=5000.0)
-        local_map = LocalMap(params, 20.0, 20.0)
-        local_map.logodds[:] = 0.0
-        paint(local_map, 5.0, 35.0, 19.0, 21.0, params.logodds_min)
-        paint(local_map, 5.0, 35.0, 18.8, 18.9, params.logodds_max)
-        paint(local_map, 5.0, 15.5, 21.1, 21.2, params.logodds_max)
-        paint(local_map, 16.5, 35.0, 21.1, 21.2, params.logodds_max)
-        rig = PlannerRig(local_map, "pereira", ME, params)
-        places = [float(x) for x in range(6, 35)]
-        for k, x in enumerate(places):
-            rig.scheme.on_record("place", values_of(Place(OTHER, k + 1, round(x * 10), 200, 8, 1 if k else 0)), NOW_US)
+        north_wall_with_a_door = [(5.0, 15.5, 21.1, 21.2), (16.5, 35.0, 21.1, 21.2)]
+        rig = _corridor_rig(params, north_wall_with_a_door)
         along_x = 0
-        rig.scheme.on_record("gate", values_of(Gate(OTHER, len(places) + 1, 160, 212, along_x, 25)), NOW_US)
-        rig.roster.heard_at(OTHER, 30.0, 20.0, NOW_US)
+        rig.scheme.on_record("gate", values_of(Gate(OTHER, len(DROVE_TO_34_M) + 1, 160, 212, along_x, 25)), NOW_US)
         assert _filter(rig, at_the_door) == kept
         assert rig.stat("waypoints_seen_by_team") == 1 - len(kept)
 
@@ -246,18 +256,8 @@ def _claims_after_two_cycles(east_end_walled: bool) -> PlannerRig:
     Every waypoint near a teammate's place counts as seen by the team here (what the view
     leaves unseen is another test's): this one is about the claim that follows."""
     params = dataclasses.replace(P, pereira_team_view=True, pereira_revive_left_bit=1e9)
-    local_map = LocalMap(params, 20.0, 20.0)
-    local_map.logodds[:] = 0.0
-    paint(local_map, 5.0, 35.0, 19.0, 21.0, P.logodds_min)
-    paint(local_map, 5.0, 35.0, 18.8, 18.9, P.logodds_max)
-    paint(local_map, 5.0, 35.0, 21.1, 21.2, P.logodds_max)
-    paint(local_map, 4.8, 4.9, 18.8, 21.2, P.logodds_max)
-    if east_end_walled:
-        paint(local_map, 35.1, 35.2, 18.8, 21.2, P.logodds_max)
-    rig = PlannerRig(local_map, "pereira", ME, params)
-    for k, x in enumerate(range(6, 35)):
-        rig.scheme.on_record("place", values_of(Place(OTHER, k + 1, x * 10, 200, 8, 1 if k else 0)), NOW_US)
-    rig.roster.heard_at(OTHER, 30.0, 20.0, NOW_US)
+    walls = [(5.0, 35.0, 21.1, 21.2), (4.8, 4.9, 18.8, 21.2)] + ([(35.1, 35.2, 18.8, 21.2)] if east_end_walled else [])
+    rig = _corridor_rig(params, walls)
     for cycle in range(P.pereira_explored_cycles):
         now_us = NOW_US + cycle * 1_000_000
         rig.plan(20.0, 20.0, now_us)
