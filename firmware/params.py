@@ -271,7 +271,7 @@ class ExplorationParams:
                                  "waypoints in unclaimed regions that teammates' places saw are dropped")
     # A teammate's place sees its own side of a gate: the view's rays pass through what this
     # robot's map shows unknown, walls it never saw included, so without this a teammate in a
-    # corridor "sees" the rooms off it.
+    # corridor "sees" the rooms off it (the Intel lab: docs/pereira/intel-gates/).
     pereira_gates_block_view: bool = _p(True, 'bool', None, None,
                                         "the teammates' places' view stops at gates")
     # A robot with nothing else left heads for the regions teammates are heading for, along

@@ -658,7 +658,8 @@ class Pereira(Scheme):
         # a teammate says so (else one claim would make every robot claim it too), nor
         # because a model says the teammates' places saw what its waypoints promise (their
         # rays pass through what this robot's map shows unknown: walls it never saw
-        # included). A claim is a report others trust.
+        # included). A claim is a report others trust. (Where that view is mostly right, as
+        # in a cave, teammates then explore such regions again: docs/pereira/intel-gates/.)
         with_waypoints = set(self._labels(graph, [(w.x_m, w.y_m) for w in items])) | self._left_labels
         self._left_labels = set()
         clean: dict[tuple[int, ...], int] = {}
