@@ -14,7 +14,7 @@ from firmware.services.waypoints import WaypointSet
 from hal.lora import profile
 from tests.doubles import FakeRadio
 
-ME, ASKER, ORIGIN, OTHER = 0, 1, 2, 3
+ME, ASKER, ORIGIN = 0, 1, 2
 P = ExplorationParams()
 
 
@@ -59,6 +59,6 @@ def test_a_summary_lacking_records_is_answered_with_them():
 
 def test_a_push_waiting_on_the_link_is_taken_back_when_another_robot_sends_the_record():
     scheme, link = _asked_for_three()
-    scheme.on_record("place", values_of(_place(2)), 11_100_000)      # OTHER pushed it first
+    scheme.on_record("place", values_of(_place(2)), 11_100_000)      # another robot pushed it first
     assert link.queued("place") == 2 and scheme.stats()["pushes_withdrawn"] == 1
     assert _sent_places(link) == [1, 3]
