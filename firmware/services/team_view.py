@@ -47,9 +47,9 @@ def unseen_after_team_view_bit(sight: np.ndarray, row0: int, col0: int, waypoint
     pi, pj = np.ascontiguousarray(ij[inside, 0]), np.ascontiguousarray(ij[inside, 1])
     place_sight = sight
     if view_walls is not None:
-        walls = view_walls.copy()
-        walls[pi, pj] = False
-        place_sight = np.where(walls, np.uint8(kernels.OCCUPIED), sight).astype(sight.dtype)
+        place_sight = sight.copy()
+        place_sight[view_walls] = kernels.OCCUPIED
+        place_sight[pi, pj] = sight[pi, pj]
     seen = np.zeros(sight.shape, bool)
     kernels.mark_visible(place_sight, pi, pj, p.team_view_rays, reach_cells, counted, seen)
     team_sight = sight.copy()
