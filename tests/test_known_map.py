@@ -151,6 +151,42 @@ def test_a_robot_about_to_stop_goes_back_to_a_frontier_its_window_left_behind():
     assert (np.abs(second.path_xy[:, 1]) < 1.0).all()
 
 
+def hairpin_with_a_door_far_round() -> LocalMap:
+    """Two corridors along y = 0 and y = 25 m from x = 0 to 70 m, closed at x = 0 and joined
+    at the far end by a corridor along x = 68 m, with a doorway onto unknown ground in the
+    upper corridor's north wall at x = 2 m. The window is back round the lower corridor's
+    west end: the doorway lies 26 m north of it, 150 m round by the corridors."""
+    local_map = LocalMap(P, 50.0, 15.0)
+    for y_m in (0.0, 25.0):
+        _paint(local_map, 30.0, 70.0, y_m - 1.3, y_m + 1.3, WALL_LOGODDS)
+        _paint(local_map, 30.0, 69.0, y_m - 1.0, y_m + 1.0, FREE_LOGODDS)
+    _paint(local_map, 66.7, 69.3, 0.0, 25.0, WALL_LOGODDS)
+    _paint(local_map, 67.0, 69.0, -1.0, 26.0, FREE_LOGODDS)
+    assert local_map.follow(10.0, 15.0)
+    for y_m in (0.0, 25.0):
+        _paint(local_map, -0.2, 30.0, y_m - 1.3, y_m + 1.3, WALL_LOGODDS)
+        _paint(local_map, 0.0, 30.0, y_m - 1.0, y_m + 1.0, FREE_LOGODDS)
+    _paint(local_map, 1.5, 2.5, 26.0, 26.3, FREE_LOGODDS)           # the doorway, unknown beyond
+    assert local_map.follow(10.0, -5.0)
+    return local_map
+
+
+def test_a_way_round_everything_mapped_beats_the_graphs_straight_line_across_the_unknown():
+    """A robot that shares no topological map has its own places along the lower corridor
+    only. The place nearest the doorway is the corridor's west end, 26 m short of it in a
+    straight line the robot's map shows walled: the graph's way leads there and no further.
+    The way round the corridors, through everything mapped, is the one to take."""
+    rig = PlannerRig(hairpin_with_a_door_far_round(), "independent")
+    for x_m in range(1, 10):
+        rig.topo.add((0, x_m * 100, 0, 0, 1, 0, 0))
+    assert not rig.plan(9.0, 0.0, 1_000_000).done
+    heading = rig.plan(9.0, 0.0, 2_000_000)
+    assert heading.target is not None and math.dist((heading.target.x_m, heading.target.y_m), (2.0, 26.0)) < 1.0
+    assert heading.target.cost_m > 140.0                        # costed round the corridors
+    assert len(heading.path_xy) > 0 and heading.path_xy[-1, 0] > 25.0     # east, not to the west end
+    assert (np.abs(heading.path_xy[:, 1]) < 1.0).all()
+
+
 def test_a_robot_says_complete_only_when_nothing_it_mapped_is_left_that_its_body_can_reach():
     # No communication: no frontier is left to a teammate (a scheme may do that).
     r = run_mission(MissionConfig(map_spec="cave:2:30x30", robots=2, seed=1, max_sim_s=1200.0,

@@ -134,14 +134,18 @@ class Planner:
             settle_choice_costs(candidates, paths, self.targets.target, self.p.resolution_m)
             c = self.targets.choose(candidates)
             key = (c.x_m, c.y_m)
-            cells = self._route(c, paths, layers.state, topo_src, topo_dist, topo_parent, x_m, y_m)
-            if cells is None and key in through_known:
-                cells = through_known[key]
-            elif cells is None:
-                graph_cost_m = c.cost_m
-                cells = through_known[key] = self._route_through_known(c, paths, x_m, y_m, now_us)
-                if cells is not None and c.cost_m > graph_cost_m:
-                    continue
+            cells, leap_m = self._route(c, paths, layers.state, topo_src, topo_dist, topo_parent, x_m, y_m)
+            if cells is None or leap_m > p.d_cam_m:
+                # No way in the window or along the graph, or the graph's way ends in a
+                # straight line longer than a look reaches (across what the graph never
+                # saw): the way through everything mapped is the truer one, if there is one.
+                if key not in through_known:
+                    graph_cost_m = c.cost_m
+                    through_known[key] = self._route_through_known(c, paths, x_m, y_m, now_us)
+                    if through_known[key] is not None and c.cost_m > graph_cost_m:
+                        continue
+                if through_known[key] is not None:
+                    cells = through_known[key]
             if cells is not None:
                 reaches_it = tuple(cells[-1]) == self.map.cell_of(c.x_m, c.y_m)
                 ended = self.targets.head_for(c, now_us, reaches_it)
@@ -384,26 +388,28 @@ class Planner:
 
     # --- routes -----------------------------------------------------------------------
     def _route(self, c: Candidate, paths: GridPaths, state: np.ndarray, topo_src, topo_dist, topo_parent,
-               x_m: float, y_m: float) -> list[tuple[int, int]] | None:
+               x_m: float, y_m: float) -> tuple[list[tuple[int, int]] | None, float]:
         """The cells of a local path to the target, or to the farthest vertex on the
-        topological route towards it that the local map can reach."""
+        topological route towards it that the local map can reach; and the straight line (m)
+        the graph's way ends with (0 on a path to the target itself)."""
         reachable = paths.reachable
         wi, wj = self.map.cell_of(c.x_m, c.y_m)
         in_window = self._in_window(wi, wj)
         if in_window and reachable[wi, wj]:
-            return paths.path(wi, wj)
+            return paths.path(wi, wj), 0.0
         if topo_src is None:
-            return None
+            return None, math.inf
         _, goal_vertex = self.topo.cost_to(topo_dist, c.x_m, c.y_m)
         if goal_vertex is None:
-            return None
+            return None, math.inf
         xy = self.topo.positions()
+        leap_m = math.hypot(xy[goal_vertex, 0] - c.x_m, xy[goal_vertex, 1] - c.y_m)
         if in_window and self._walled_off(xy[goal_vertex], (wi, wj), reachable, state):
             # The graph ends at a place the robot can drive to, short of c, and finishes with
             # a straight line through a wall: following it leads to that place and no
             # further. Only a way out of the window and back can help (the caller's route
             # through everything mapped), or none does.
-            return None
+            return None, leap_m
         route = self.topo.path(topo_parent, goal_vertex)
         best = None
         for k, v in enumerate(route):
@@ -419,8 +425,8 @@ class Planner:
                 self.blocked_edges.add(self.topo.edge_key(route[k - 1], v))
                 break
         if best is None or math.hypot(xy[best[0], 0] - x_m, xy[best[0], 1] - y_m) < self.p.waypoint_reached_m:
-            return None  # the only reachable place on the way is where we stand: no progress
-        return paths.path(best[1][0], best[1][1])
+            return None, leap_m  # the only reachable place on the way is where we stand: no progress
+        return paths.path(best[1][0], best[1][1]), leap_m
 
     def _walled_off(self, place_xy_m: np.ndarray, goal: tuple[int, int], reachable: np.ndarray,
                     state: np.ndarray) -> bool:
