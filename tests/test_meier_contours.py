@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from scipy import ndimage
 
 from firmware import kernels
-from firmware.schemes.meier.contours import FRONTIER_EDGE, WALL_EDGE, signed_area, trace_contours
+from firmware.schemes.meier.contours import FRONTIER_EDGE, WALL_EDGE, signed_area, smooth_edge_types, trace_contours
 
 
 def _state(seed: int) -> np.ndarray:
@@ -83,3 +83,36 @@ def test_two_free_cells_touching_at_a_corner_are_two_contours():
     rings = trace_contours(s)
     assert len(rings) == 2 and all(len(r.corners) == 4 for r in rings)
     assert all((r.edge_types == WALL_EDGE).sum() == 2 for r in rings)
+
+
+def _runs(types: np.ndarray) -> list[tuple[int, int, int]]:
+    """(start, length, type) of each run of a closed contour's types; [] for one type."""
+    change = np.nonzero(types != np.roll(types, 1))[0]
+    if not len(change):
+        return []
+    lengths = np.diff(np.append(change, change[0] + len(types)))
+    return [(int(a), int(n), int(types[a])) for a, n in zip(change, lengths)]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.sampled_from([FRONTIER_EDGE, WALL_EDGE]), min_size=1, max_size=60), st.integers(1, 5))
+def test_smoothed_types_have_no_run_shorter_than_the_minimum_and_change_only_short_runs(types, min_run):
+    types = np.array(types, np.int8)
+    out = smooth_edge_types(types, min_run)
+    assert all(n >= min_run for _, n, _ in _runs(out))
+    assert np.array_equal(smooth_edge_types(out, min_run), out)         # smoothing it again changes nothing
+    short = np.zeros(len(types), bool)
+    for a, n, _ in _runs(types):
+        if n < min_run:
+            short[(a + np.arange(n)) % len(types)] = True
+    changed = out != types
+    # A crack changes only if it lay in a short run, or the whole contour became one type.
+    assert not (changed & ~short).any() or len(set(out.tolist())) == 1
+    if min_run == 1:
+        assert np.array_equal(out, types)
+
+
+def test_a_gap_of_a_crack_in_a_wall_becomes_wall_and_a_speck_of_wall_in_a_frontier_frontier():
+    w, f = WALL_EDGE, FRONTIER_EDGE
+    types = np.array([w, w, w, f, w, w, w, w, f, f, f, f, w, f, f, f, f], np.int8)
+    assert smooth_edge_types(types, 3).tolist() == [w] * 8 + [f] * 9

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware import kernels
-from firmware.schemes.meier.contours import trace_contours
+from firmware.schemes.meier.contours import smooth_edge_types, trace_contours
 from firmware.schemes.meier.replica import Replica
 from firmware.schemes.meier.simplify import point_segment_distance
 from firmware.schemes.meier.tracker import PolygonTracker
@@ -31,6 +31,8 @@ def _growing_maps(seed: int, steps: int):
 
 
 def _rings_on_contours(tracker, state):
+    """Check the tracker's rings against the contours of `state`, with the crack types the
+    tracker smooths them to; the contours."""
     pm = tracker.map
     contours = trace_contours(state)
     where = {}
@@ -45,7 +47,8 @@ def _rings_on_contours(tracker, state):
         ks = [p[0][1] for p in places]
         k0 = ks.index(min(ks))
         assert ks[k0:] + ks[:k0] == sorted(ks)                   # in the contour's order
-        types, n = contours[labels.pop()].edge_types, len(contours[places[0][0][0]].corners)
+        types = smooth_edge_types(contours[labels.pop()].edge_types, tracker.type_min_run)
+        n = len(contours[places[0][0][0]].corners)
         for v, k, k_next in zip(ring, ks, ks[1:] + ks[:1]):
             arc = [(k + j) % n for j in range((k_next - k) % n or n)]
             assert pm.vertex(v)[2] == types[arc].min()           # a wall only if every crack is one
@@ -53,9 +56,9 @@ def _rings_on_contours(tracker, state):
 
 
 @settings(max_examples=150, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 3, 1000]))
-def test_the_rings_follow_the_boundary_and_a_receiver_of_every_record_holds_them(seed, splits):
-    tracker = PolygonTracker(sender_id=1, eps_cells=1.0)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 3, 1000]), st.sampled_from([1, 3]))
+def test_the_rings_follow_the_boundary_and_a_receiver_of_every_record_holds_them(seed, splits, type_min_run):
+    tracker = PolygonTracker(sender_id=1, eps_cells=1.0, type_min_run=type_min_run)
     records, placed = [], {}
     for state in _growing_maps(seed, 6):
         sent = tracker.update(state, splits)

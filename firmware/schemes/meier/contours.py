@@ -38,3 +38,20 @@ def signed_area(corners: np.ndarray) -> float:
     """Shoelace area of a closed ring of (x, y): positive counter-clockwise."""
     x, y = corners[:, 0].astype(np.float64), corners[:, 1].astype(np.float64)
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def smooth_edge_types(types: np.ndarray, min_run: int) -> np.ndarray:
+    """A closed contour's crack types with every run shorter than min_run cracks taking the
+    type around it: first frontier gaps in walls (a gap of a crack or two is no way on and
+    mostly a beam that missed), then specks of wall in frontiers. A contour of one type, or
+    min_run 1, is returned as it is."""
+    out = np.asarray(types).copy()
+    for short in (FRONTIER_EDGE, WALL_EDGE):
+        change = np.nonzero(out != np.roll(out, 1))[0]
+        if min_run <= 1 or len(change) == 0:
+            return out
+        lengths = np.diff(np.append(change, change[0] + len(out)))
+        for start, length in zip(change.tolist(), lengths.tolist()):
+            if length < min_run and out[start] == short:
+                out[(start + np.arange(length)) % len(out)] = 1 - short
+    return out

@@ -16,16 +16,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware.schemes.meier.contours import Contour, trace_contours
+from firmware.schemes.meier.contours import Contour, smooth_edge_types, trace_contours
 from firmware.schemes.meier.polygons import PolygonMap
 from firmware.schemes.meier.replica import PolyRecord
 from firmware.schemes.meier.simplify import RingSimplifier
 
 
 class PolygonTracker:
-    def __init__(self, sender_id: int, eps_cells: float) -> None:
+    def __init__(self, sender_id: int, eps_cells: float, type_min_run: int = 1) -> None:
         self.map = PolygonMap(sender_id)
         self.eps = eps_cells
+        self.type_min_run = type_min_run    # cracks: shorter runs of one type take the type around
         # Per ring: its simplifier and the vertex id at each of its corners that is one.
         self._rings: list[tuple[RingSimplifier, dict[int, int]]] = []
         self.splits = 0          # edge splits the last update made
@@ -34,7 +35,8 @@ class PolygonTracker:
         """Follow the boundary of `state` (a classified grid whose cell (0, 0) is cell
         (row0, col0) of the lattice; vertices sit on the lattice's corners); the records of
         what changed."""
-        contours = [Contour(c.corners + (col0, row0), c.edge_types) for c in trace_contours(state)]
+        contours = [Contour(c.corners + (col0, row0), smooth_edge_types(c.edge_types, self.type_min_run))
+                    for c in trace_contours(state)]
         passes: dict[tuple[int, int], int] = {}
         for c in contours:
             for p in map(tuple, c.corners.tolist()):
