@@ -445,9 +445,9 @@ class Planner:
         """When neither the window nor the graph has a way to c, or the graph's ends in a long
         straight line: the cells of a local path along the shortest way through everything
         mapped (services.known_map), as far as that way stays in the window on cells a grid
-        path reaches; None if there is no such
-        way, if it makes no progress, or if it never leaves the window's reach (then only c's
-        own cell is cut off, and it is struck as before)."""
+        path reaches; None if there is no such way, if it makes no progress, or if it never
+        leaves the window's reach (then only c's own cell is cut off, and it is struck as
+        before)."""
         self.known.refresh(x_m, y_m, now_us)
         found = self.known.route(c.x_m, c.y_m)
         if found is None:

@@ -46,12 +46,13 @@ def smooth_edge_types(types: np.ndarray, min_run: int) -> np.ndarray:
     mostly a beam that missed), then specks of wall in frontiers. A contour of one type, or
     min_run 1, is returned as it is."""
     out = np.asarray(types).copy()
+    if min_run <= 1:
+        return out
     for short in (FRONTIER_EDGE, WALL_EDGE):
         change = np.nonzero(out != np.roll(out, 1))[0]
-        if min_run <= 1 or len(change) == 0:
+        if len(change) == 0:
             return out
         lengths = np.diff(np.append(change, change[0] + len(out)))
-        for start, length in zip(change.tolist(), lengths.tolist()):
-            if length < min_run and out[start] == short:
-                out[(start + np.arange(length)) % len(out)] = 1 - short
+        flip = np.repeat((lengths < min_run) & (out[change] == short), lengths)   # from change[0] on
+        out[((change[0] + np.arange(len(out))) % len(out))[flip]] = 1 - short
     return out
