@@ -200,6 +200,11 @@ class ExplorationParams:
     # (maze_a seed 0 over eu868-g3: 3 cut LoRa bytes 19 %, approximation error 0.074 -> 0.045).
     meier_type_min_run: int = _p(3, 'cracks', 1, 100,
                                  'a run of boundary cracks of one type shorter than this takes the type around it')
+    # A junction of wall and frontier that advances along a wall with the frontier would
+    # leave a vertex at every update (vertices never move): held on a vertex this far back,
+    # the wall between drawn as frontier, it leaves one every this far.
+    meier_junction_hold_m: float = _p(2.0, 'm', 0.0, 100.0,
+                                      'a wall/frontier junction stays on a vertex at most this far back along the wall')
     meier_backlog_max: int = _p(8, 'records', 1, 64, 'no splits while this many polygon records wait on the link')
     meier_max_range_m: float = _p(10.0, 'm', 0.1, 1000.0, "the sensor's range in eq. (1)", lo_open=True)
     meier_beta_per_m: float = _p(0.1, '1/m', 0.0, 100.0, 'utility a metre of path costs (Algorithm 1)', lo_open=True)

@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 from scipy import ndimage
 
 from firmware import kernels
-from firmware.schemes.meier.contours import FRONTIER_EDGE, WALL_EDGE, signed_area, smooth_edge_types, trace_contours
+from firmware.schemes.meier.contours import (FRONTIER_EDGE, WALL_EDGE, hold_junctions, signed_area, smooth_edge_types,
+                                             trace_contours)
 
 
 def _state(seed: int) -> np.ndarray:
@@ -116,3 +117,38 @@ def test_a_gap_of_a_crack_in_a_wall_becomes_wall_and_a_speck_of_wall_in_a_fronti
     w, f = WALL_EDGE, FRONTIER_EDGE
     types = np.array([w, w, w, f, w, w, w, w, f, f, f, f, w, f, f, f, f], np.int8)
     assert smooth_edge_types(types, 3).tolist() == [w] * 8 + [f] * 9
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.lists(st.sampled_from([FRONTIER_EDGE, WALL_EDGE]), min_size=1, max_size=60),
+       st.lists(st.integers(0, 59), max_size=8), st.integers(0, 6))
+def test_a_held_junction_moves_back_along_its_wall_onto_a_kept_vertex_and_never_makes_a_wall(types, kept, hold):
+    types = np.array(types, np.int8)
+    n = len(types)
+    kept = sorted({k % n for k in kept})
+    out = hold_junctions(types, kept, hold)
+    assert not (out > types).any()                                   # no frontier crack becomes a wall
+    junctions = set(np.nonzero(out != np.roll(out, 1))[0].tolist())
+    before = set(np.nonzero(types != np.roll(types, 1))[0].tolist())
+    assert junctions <= before | set(kept)                           # a new junction sits on a kept vertex
+    spans = []                         # wall cracks between a junction and a kept vertex within reach
+    for k in before:
+        for d in range(1, hold + 1):
+            back = types[k] == FRONTIER_EDGE
+            cracks = (k - np.arange(1, d + 1)) % n if back else (k + np.arange(d)) % n
+            if (types[cracks] == WALL_EDGE).all() and ((k - d) % n if back else (k + d) % n) in kept:
+                spans.append(set(cracks.tolist()))
+    for c in np.nonzero(out != types)[0].tolist():
+        assert any(c in span for span in spans)
+    if hold == 0 or not kept:
+        assert np.array_equal(out, types)
+
+
+def test_a_junction_stays_on_the_nearest_kept_vertex_within_reach_and_only_along_a_wall():
+    w, f = WALL_EDGE, FRONTIER_EDGE
+    types = np.array([w] * 6 + [f] * 4 + [w] * 6, np.int8)           # junctions at corners 6 and 10
+    assert hold_junctions(types, [3, 5], 3).tolist() == [w] * 5 + [f] * 5 + [w] * 6
+    assert hold_junctions(types, [2], 3).tolist() == types.tolist()  # 4 cracks back: too far
+    assert hold_junctions(types, [13], 3).tolist() == [w] * 6 + [f] * 7 + [w] * 3
+    assert hold_junctions(types, [8], 3).tolist() == types.tolist()  # a vertex in the frontier holds nothing
+    assert hold_junctions(types, [4, 6], 3).tolist() == types.tolist()  # a junction on a vertex stays

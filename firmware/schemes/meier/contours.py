@@ -56,3 +56,32 @@ def smooth_edge_types(types: np.ndarray, min_run: int) -> np.ndarray:
         flip = np.repeat((lengths < min_run) & (out[change] == short), lengths)   # from change[0] on
         out[((change[0] + np.arange(len(out))) % len(out))[flip]] = 1 - short
     return out
+
+
+def hold_junctions(types: np.ndarray, kept: np.ndarray, max_cracks: int) -> np.ndarray:
+    """A closed contour's crack types with each wall/frontier junction moved back onto a
+    kept vertex (a corner index in `kept`) at most max_cracks wall cracks away, the wall
+    cracks between becoming frontier. Vertices never move, so a junction that advances along
+    a wall as the frontier does would leave a vertex behind at every update; held, it leaves
+    one every max_cracks. Only walls ever turn into frontier: a frontier is never drawn as a
+    wall. A junction on a kept vertex, or with none that near, stays where it is."""
+    types = np.asarray(types)
+    out = types.copy()
+    n = len(types)
+    if max_cracks <= 0 or n == 0 or len(kept) == 0:
+        return out
+    is_kept = np.zeros(n, bool)
+    is_kept[np.asarray(kept, np.int64)] = True
+    for k in np.nonzero(types != np.roll(types, 1))[0].tolist():
+        if is_kept[k]:
+            continue
+        into_frontier = types[k] == FRONTIER_EDGE      # wall cracks before corner k, else after it
+        for d in range(1, max_cracks + 1):
+            crack = (k - d) % n if into_frontier else (k + d - 1) % n
+            if types[crack] != WALL_EDGE:
+                break
+            if is_kept[(k - d) % n if into_frontier else (k + d) % n]:
+                held = (k - np.arange(1, d + 1)) % n if into_frontier else (k + np.arange(d)) % n
+                out[held] = FRONTIER_EDGE
+                break
+    return out

@@ -84,7 +84,8 @@ class Meier(Scheme):
                              f"lattice of {LATTICE_M:g} m")
         self._k = round(k)
         self.own = CoarseRaster(self._k)
-        self.tracker = PolygonTracker(services.robot_id, p.meier_eps_m / LATTICE_M, p.meier_type_min_run)
+        self.tracker = PolygonTracker(services.robot_id, p.meier_eps_m / LATTICE_M, p.meier_type_min_run,
+                                      round(p.meier_junction_hold_m / LATTICE_M))
         self._tokens = 0.0
         self._outbox: dict[int, tuple[int, PolyRecord | AliveRecord]] = {}   # vertex id (or -block-1) -> (priority, record)
         self._refresh_credit = 0.0

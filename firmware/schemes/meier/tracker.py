@@ -8,7 +8,9 @@ Each update traces the new boundary (contours.trace_contours), then:
    boundary broken in two, or two joined, is the same relink); a contour left with one
    vertex gets the corner farthest from it, one with none starts from its lowest corner
    and the farthest from that (meier.md A7); a corner where the crack type changes is a
-   vertex, and a vertex's edge is a wall only if every crack along it is one;
+   vertex, unless a vertex a few wall cracks back can hold that junction
+   (contours.hold_junctions), and a vertex's edge is a wall only if every crack along it
+   is one;
 3. refine: up to max_splits edge splits, the worst edge of all rings first (simplify).
 Vertices never move: a vertex stays where it was sent or goes (the paper's constraint).
 """
@@ -16,17 +18,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware.schemes.meier.contours import Contour, smooth_edge_types, trace_contours
+from firmware.schemes.meier.contours import Contour, hold_junctions, smooth_edge_types, trace_contours
 from firmware.schemes.meier.polygons import PolygonMap
 from firmware.schemes.meier.replica import PolyRecord
 from firmware.schemes.meier.simplify import RingSimplifier
 
 
 class PolygonTracker:
-    def __init__(self, sender_id: int, eps_cells: float, type_min_run: int = 1) -> None:
+    def __init__(self, sender_id: int, eps_cells: float, type_min_run: int = 1, junction_hold: int = 0) -> None:
         self.map = PolygonMap(sender_id)
         self.eps = eps_cells
         self.type_min_run = type_min_run    # cracks: shorter runs of one type take the type around
+        self.junction_hold = junction_hold  # cracks: a junction moves back onto a vertex this near
         # Per ring: its simplifier and the vertex id at each of its corners that is one.
         self._rings: list[tuple[RingSimplifier, dict[int, int]]] = []
         self.splits = 0          # edge splits the last update made
@@ -52,6 +55,8 @@ class PolygonTracker:
             if (x, y) in place:
                 label, k = place[(x, y)]
                 on.setdefault(label, {})[k] = v
+        contours = [Contour(c.corners, hold_junctions(c.edge_types, sorted(on.get(label, {})), self.junction_hold))
+                    for label, c in enumerate(contours)]
         self._rings = []
         for label, c in enumerate(contours):
             usable = np.array([passes[p] == 1 for p in map(tuple, c.corners.tolist())], bool)
