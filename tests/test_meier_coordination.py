@@ -103,7 +103,7 @@ def test_a_frontier_only_a_teammates_polygons_show_beyond_the_window_is_in_the_w
     # Lattice of 0.2 m: x 15.2 .. 70 m, y 9 .. 11 m; walls along both sides, open at the far end.
     corridor.new_ring([(76, 45, 1), (350, 45, 0), (350, 55, 1), (76, 55, 0)])
     for r in corridor.flush():
-        rig.scheme.on_record("poly", poly_values(r), 0)
+        rig.scheme.on_record(*poly_values(r), 0)
     state, row0, col0 = rig.local_map.whole_state()
     assert state[100 - row0, 500 - col0] == kernels.FREE                 # (50, 10) m: the teammate saw it
     known = KnownMap(P, rig.local_map)

@@ -116,19 +116,23 @@ class Meier(Scheme):
         self.own.merge(lm.state_of(0, lm.n, 0, lm.n), lm.row0, lm.col0)
         self._tokens = min(max(1.0, p.meier_split_rate_hz * p.meier_update_s),
                            self._tokens + p.meier_split_rate_hz * p.meier_update_s)
-        backlog = len(self._outbox) + s.queued("poly")
+        backlog = len(self._outbox) + self._poly_queued()
         splits = int(self._tokens) if backlog < p.meier_backlog_max and not self._finished else 0
         records = self.tracker.update(self.own.cells, splits, self.own.row0, self.own.col0)
         self._tokens -= self.tracker.splits
         self.counts["edge_splits"] += self.tracker.splits
         for r in records:
             self._post(r, PRIORITY_SPLIT if r.kind == EDGE_SPLIT else PRIORITY_FORCED)
-        if not self._outbox and not s.queued("poly") and not self._finished:
+        if not self._outbox and not self._poly_queued() and not self._finished:
             self._refresh_credit = min(1.0, self._refresh_credit + REFRESH_RECORDS_PER_S * p.meier_update_s)
             if self._refresh_credit >= 1.0:
                 self._refresh_credit -= 1.0
                 for r in self.tracker.map.refresh_next(1):
                     self._post(r, PRIORITY_REFRESH)
+
+    def _poly_queued(self) -> int:
+        """Vertex records waiting on the link."""
+        return self.s.queued("poly") + self.s.queued("poly_gone")
 
     def _post(self, r: PolyRecord | AliveRecord, priority: int) -> None:
         """Into the outbox; a newer state of the same vertex (or block) replaces one waiting."""
@@ -140,7 +144,7 @@ class Meier(Scheme):
         """Feed the link from the outbox, the most urgent first, keeping at most
         meier_backlog_max polygon records queued there."""
         s = self.s
-        waiting = s.queued("poly") + s.queued("poly_alive")
+        waiting = self._poly_queued() + s.queued("poly_alive")
         self._outbox_us = now_us
         if waiting or self._outbox:
             self._news_until_us = now_us + int(NEWS_READ_S * 1e6)
@@ -152,7 +156,7 @@ class Meier(Scheme):
         for key in order[:room]:
             priority, r = self._outbox.pop(key)
             if isinstance(r, PolyRecord):
-                ok = s.send("poly", poly_values(r), priority, key=("poly", r.vertex_id))
+                ok = s.send(*poly_values(r), priority, key=("poly", r.vertex_id))
                 self.counts["poly_records_sent"] += 1
                 self.records_by_kind[r.kind] += 1
             else:
@@ -169,7 +173,7 @@ class Meier(Scheme):
             return
         if self.variant != "polygons" or values["sender_id"] == self.s.robot_id:
             return
-        record = poly_record(values) if rtype == "poly" else alive_record(values)
+        record = alive_record(values) if rtype == "poly_alive" else poly_record(rtype, values)
         self.replicas.setdefault(record.sender_id, Replica()).add(record)
         self._team_stale = True
 
