@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from firmware import kernels
+from firmware.schemes.meier.contours import WALL_EDGE
+from firmware.schemes.meier.raster import rasterise_rings
 
 
 def has_polygons(agents: list) -> bool:
@@ -47,22 +49,44 @@ def approximation_errors(agents: list) -> list[float]:
     return out
 
 
-def replica_mismatch(agents: list) -> list[list[float | None]]:
-    """[receiver][sender]: the share of the sender's live vertices that the receiver's copy
-    does not hold exactly (same id, place, edge type and successor); None on the diagonal
-    and where the sender has no vertex."""
-    truth = [_vertex_states(a.scheme.polygons()) for a in agents]
-    out = []
+def replica_mismatch(agents: list) -> tuple[list[list[float | None]], list[list[float | None]]]:
+    """[receiver][sender], None on the diagonal and where the sender has no vertex: the
+    share of the area the sender's polygons say something about (free or wall) that the
+    receiver's copy, drawn the same way, says otherwise; and the share of the sender's live
+    vertices that the copy does not hold exactly (same id, place, edge type and successor)."""
+    truth = [a.scheme.polygons() for a in agents]
+    area, vertices = [], []
     for i, a in enumerate(agents):
-        row = []
+        area_row, vertex_row = [], []
         for j, sent in enumerate(truth):
             if i == j or not sent:
-                row.append(None)
+                area_row.append(None)
+                vertex_row.append(None)
                 continue
-            held = _vertex_states(a.scheme.polygons_of(agents[j].hal.robot_id))
-            row.append(sum(held.get(v) != state for v, state in sent.items()) / len(sent))
-        out.append(row)
-    return out
+            held = a.scheme.polygons_of(agents[j].hal.robot_id)
+            area_row.append(_area_differing(sent, held))
+            sent_states, held_states = _vertex_states(sent), _vertex_states(held)
+            vertex_row.append(sum(held_states.get(v) != st for v, st in sent_states.items()) / len(sent_states))
+        area.append(area_row)
+        vertices.append(vertex_row)
+    return area, vertices
+
+
+def _area_differing(sent, held) -> float:
+    """The share of the cells `sent` shows known that `held` shows otherwise (both drawn
+    as a receiver draws a teammate's rings)."""
+    corners = np.array([(x, y) for ring in sent + held for _, x, y, _ in ring], np.int64)
+    (c_lo, r_lo), (c_hi, r_hi) = corners.min(axis=0) - 2, corners.max(axis=0) + 2
+    shape = (int(r_hi - r_lo), int(c_hi - c_lo))
+
+    def drawn(rings):
+        lattice = [np.array([(x, y) for _, x, y, _ in ring], np.int64) for ring in rings]
+        wall = [np.array([t == WALL_EDGE for *_, t in ring]) for ring in rings]
+        return rasterise_rings(lattice, wall, shape, int(r_lo), int(c_lo))
+
+    want, got = drawn(sent), drawn(held)
+    known = want != kernels.UNKNOWN
+    return float((got[known] != want[known]).sum() + (got[~known] != kernels.UNKNOWN).sum()) / max(int(known.sum()), 1)
 
 
 def _vertex_states(rings) -> dict[int, tuple[int, int, int, int]]:
@@ -90,7 +114,7 @@ class ErrorSampler:
 
 def report(agents: list, sampler: ErrorSampler, sim_s: float) -> dict:
     """The mission's polygon-map figures (MissionResult.polygon_maps)."""
-    mismatch = replica_mismatch(agents)
+    mismatch, vertices_wrong = replica_mismatch(agents)
     pairs = [m for row in mismatch for m in row if m is not None]
     splits = [a.scheme.stats()["edge_splits"] for a in agents]
     return {
@@ -98,5 +122,6 @@ def report(agents: list, sampler: ErrorSampler, sim_s: float) -> dict:
         "approximation_error_end": [round(e, 5) for e in approximation_errors(agents)],
         "replica_mismatch_end": [[None if m is None else round(m, 5) for m in row] for row in mismatch],
         "replica_mismatch_end_max": round(max(pairs), 5) if pairs else None,
+        "replica_vertices_wrong_end": [[None if m is None else round(m, 5) for m in row] for row in vertices_wrong],
         "split_rate_hz": [round(n / sim_s, 4) if sim_s > 0 else 0.0 for n in splits],
     }
