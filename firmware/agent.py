@@ -126,6 +126,7 @@ class ExplorerAgent:
             queued=self.link.queued if self.link is not None else (lambda rtype: 0),
             withdraw=self.link.withdraw if self.link is not None else (lambda key: False),
             on_air_until_us=self.link.on_air_until_us if self.link is not None else (lambda: 0),
+            radio_Bps=self.link.sustained_Bps() if self.link is not None else None,
             current_target=lambda: self.targets.target, pose_at=self.pose.pose_at,
             uwb=self.hal.uwb if self.hal.has("uwb") else None, aoa=self.hal.aoa if self.hal.has("aoa") else None,
             deployment=self.deployment, last_scan=lambda: self._last_scan))

@@ -391,3 +391,13 @@ def test_a_link_delivers_records_of_every_dialect_it_knows_and_counts_the_rest()
     step(plain, plain_radio, 0)
     assert plain.counters["received.unknown_dialect"] == 1 and plain.counters["received.ok"] == 1
     assert [(s, n) for s, n, _ in plain.received()] == [(8, "pose")]
+
+
+def test_the_sustained_byte_rate_is_full_frames_within_the_duty_cycle_or_the_cap():
+    g3 = LinkLayer(0, profile("eu868-g3"))
+    full = g3.max_frame_bytes
+    frames_an_hour = 0.1 * 3600e6 / profile("eu868-g3").airtime_us(full)       # 10 % of the hour
+    assert g3.sustained_Bps() == pytest.approx(frames_an_hour * full / 3600)
+    assert LinkLayer(0, profile("eu868-g1")).sustained_Bps() == pytest.approx(g3.sustained_Bps() / 10)
+    assert LinkLayer(0, profile("ideal-100Bps")).sustained_Bps() == 100.0
+    assert LinkLayer(0, profile("us915")).sustained_Bps() is None                # neither limit

@@ -1,6 +1,7 @@
 """Meier et al.'s scheme end to end on the simulated HAL: a small team explores a cave by
 itself over an ideal link, each robot's copy of each teammate's polygon map equals the
 original at the end, and what it knows from the polygons is close to what the team saw."""
+from firmware.params import ExplorationParams
 from host_tools.mission import MissionConfig, run_mission
 
 
@@ -19,3 +20,15 @@ def test_a_team_finishes_and_every_copy_of_every_polygon_map_is_exact_at_the_end
 def test_schemes_without_polygons_report_none():
     r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=2, seed=2, strategy="meier-full", max_sim_s=900))
     assert "polygon_maps" not in r.to_json() and r.termination == "complete"
+
+
+def test_splits_take_only_what_the_forced_updates_leave_of_the_radio_budget():
+    """eu868-g3 sustains 64 B/s; a share of 0.05 (3.2 B/s) is less than the forced updates
+    alone need, so no edge is split (with the default share robots split, as above), and the
+    copies are still exact."""
+    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=3, seed=2, strategy="meier", max_sim_s=900,
+                                  radio="eu868-g3"), params=ExplorationParams(meier_radio_share=0.05))
+    j = r.to_json()
+    assert r.termination == "complete" and r.coverage >= 0.99
+    assert j["explorer_stats"]["edge_splits"] == [0, 0, 0]
+    assert j["polygon_maps"]["replica_mismatch_end_max"] == 0.0

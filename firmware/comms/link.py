@@ -238,6 +238,18 @@ class LinkLayer:
     def next_seq(self) -> int:
         return self._seq
 
+    def sustained_Bps(self) -> float | None:
+        """The bytes a second this node can send for ever, in full frames, within the duty
+        cycle and the byte-rate cap (None: neither limits it)."""
+        limits = []
+        if self._budget_us is not None:
+            frame = self.max_frame_bytes
+            limits.append(frame * self._budget_us / self.profile.duty_cycle_window_us
+                          / (self.profile.airtime_us(frame) / 1e6))
+        if self._rate_Bps is not None:
+            limits.append(float(self._rate_Bps))
+        return min(limits) if limits else None
+
     def duty_cycle_headroom_us(self, now_us: int) -> int | None:
         """Airtime still allowed in the window ending now (None: no duty-cycle limit)."""
         if self._budget_us is None:

@@ -33,7 +33,7 @@ from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, PRIORITY_STAT
 from firmware.schemes.meier.coordination import TARGET_SEQ_MOD, TeamTargets, discount
 from firmware.schemes.meier.polygons import EDGE_SPLIT
 from firmware.schemes.meier.raster import CoarseRaster, rasterise_rings
-from firmware.schemes.meier.records import (DIALECT, LATTICE_M, alive_record, alive_values, poly_record,
+from firmware.schemes.meier.records import (DIALECT, LATTICE_M, POLY, alive_record, alive_values, poly_record,
                                             poly_values)
 from firmware.schemes.meier.replica import AliveRecord, PolyRecord, Replica
 from firmware.schemes.meier.tracker import PolygonTracker
@@ -46,6 +46,9 @@ PRIORITY_SPLIT = PRIORITY_INFO
 PRIORITY_REFRESH = 0
 # Records of the slow refresh round robin, per second, sent only while nothing else waits.
 REFRESH_RECORDS_PER_S = 0.5
+# The byte budget (meier_radio_share) saves up at most this long a quiet spell, and a burst
+# of forced records holds splits back for at most this long.
+BUDGET_HORIZON_S = 10.0
 # A frame that left the air is read by every receiver within this long (a few ticks).
 NEWS_READ_S = 0.2
 # Coarse cells around an own waypoint beyond the local window that a teammate's map must
@@ -87,6 +90,9 @@ class Meier(Scheme):
         self.tracker = PolygonTracker(services.robot_id, p.meier_eps_m / LATTICE_M, p.meier_type_min_run,
                                       round(p.meier_junction_hold_m / LATTICE_M))
         self._tokens = 0.0
+        radio_Bps = services.radio_Bps
+        self._budget_Bps = None if radio_Bps is None else p.meier_radio_share * radio_Bps
+        self._credit_B = 0.0        # bytes of the budget not yet used (negative: overdrawn)
         self._outbox: dict[int, tuple[int, PolyRecord | AliveRecord]] = {}   # vertex id (or -block-1) -> (priority, record)
         self._refresh_credit = 0.0
         self._outbox_us = self._news_until_us = 0     # the outbox task's clock; has_news until then
@@ -118,12 +124,16 @@ class Meier(Scheme):
                            self._tokens + p.meier_split_rate_hz * p.meier_update_s)
         backlog = len(self._outbox) + self._poly_queued()
         splits = int(self._tokens) if backlog < p.meier_backlog_max and not self._finished else 0
+        if self._budget_Bps is not None:
+            horizon_B = self._budget_Bps * BUDGET_HORIZON_S
+            self._credit_B = min(horizon_B, self._credit_B + self._budget_Bps * p.meier_update_s)
+            splits = min(splits, max(0, int(self._credit_B // POLY.size_bytes)))
         records = self.tracker.update(self.own.cells, splits, self.own.row0, self.own.col0)
         self._tokens -= self.tracker.splits
         self.counts["edge_splits"] += self.tracker.splits
         for r in records:
             self._post(r, PRIORITY_SPLIT if r.kind == EDGE_SPLIT else PRIORITY_FORCED)
-        if not self._outbox and not self._poly_queued() and not self._finished:
+        if not self._outbox and not self._poly_queued() and not self._finished and self._credit_B >= 0:
             self._refresh_credit = min(1.0, self._refresh_credit + REFRESH_RECORDS_PER_S * p.meier_update_s)
             if self._refresh_credit >= 1.0:
                 self._refresh_credit -= 1.0
@@ -156,14 +166,19 @@ class Meier(Scheme):
         for key in order[:room]:
             priority, r = self._outbox.pop(key)
             if isinstance(r, PolyRecord):
-                ok = s.send(*poly_values(r), priority, key=("poly", r.vertex_id))
+                rtype, values = poly_values(r)
+                ok = s.send(rtype, values, priority, key=("poly", r.vertex_id))
                 self.counts["poly_records_sent"] += 1
                 self.records_by_kind[r.kind] += 1
             else:
-                ok = s.send("poly_alive", alive_values(r), priority, key=("poly_alive", r.block))
+                rtype = "poly_alive"
+                ok = s.send(rtype, alive_values(r), priority, key=("poly_alive", r.block))
                 self.counts["poly_alive_records_sent"] += 1
             if not ok:
                 self.counts["records_dropped_by_link"] += 1
+            elif self._budget_Bps is not None:
+                self._credit_B = max(-self._budget_Bps * BUDGET_HORIZON_S,
+                                     self._credit_B - DIALECT.by_name[rtype].size_bytes)
 
     # --- teammates' polygons ----------------------------------------------------------
     def on_record(self, rtype: str, values: Mapping[str, int], now_us: int) -> None:
