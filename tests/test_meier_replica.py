@@ -164,6 +164,19 @@ def test_a_ring_whose_tombstones_were_all_lost_is_gone_after_a_refresh():
     assert [[v.vertex_id for v in ring] for ring in _replica_rings_of(held)] == [keep]
 
 
+def test_a_ring_cut_open_by_lost_records_is_closed_across_the_gap():
+    pm = PolygonMap(sender_id=4)
+    ids = pm.new_ring([(0, 0, 1), (10, 0, 1), (20, 0, 1), (20, 10, 0), (10, 10, 1), (0, 10, 1)])
+    records = pm.flush()
+    lost = {ids[2], ids[3]}                           # two neighbours: one gap
+    held = [r for r in records if r.vertex_id not in lost]
+    assert [[v.vertex_id for v in ring] for ring in _replica_rings_of(held)] == [
+        [v for v in ids if v not in lost]]
+    two_gaps = [r for r in records if r.vertex_id not in {ids[1], ids[4]}]   # two pieces, each closed
+    assert [[v.vertex_id for v in ring] for ring in _replica_rings_of(two_gaps)] == [
+        [ids[0], ids[5]], [ids[2], ids[3]]]
+
+
 def _replica_rings_of(records):
     rep = Replica()
     for r in records:

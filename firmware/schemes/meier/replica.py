@@ -14,7 +14,9 @@ newest `poly_alive`. From those alone:
    (a removed vertex's neighbours are joined); the successor of u is the head of the newest
    claim whose tail is u;
 3. the rings are the cycles of that successor function over alive vertices (vertices on a
-   tail into a cycle are left out), each started at its smallest id, in order of that id.
+   tail into a cycle are left out), and each chain that ends where a successor is missing
+   or removed (a record lost) closed across that gap; each started at its smallest id, in
+   order of that id.
 
 Stamps are 16-bit counters compared as RFC 1982 serial numbers: a is newer than b when
 0 < (a - b) mod 2^16 < 2^15. The sender re-sends every live vertex at least every 2^14
@@ -130,20 +132,35 @@ class Replica:
     def _derive_rings(self) -> list[list[Vertex]]:
         alive = {v: r for v, r in self._vertices.items() if self._alive(r)}
         succ = self._claims(alive)
-        rings = []
+        led_to = {succ[v] for v in alive if v in succ}
         done: set[int] = set()
-        for start in sorted(alive):
-            path: list[int] = []
-            on_path: dict[int, int] = {}
-            v = start
-            while v in alive and v not in done and v not in on_path:
-                on_path[v] = len(path)
-                path.append(v)
-                v = succ.get(v, 0)
-            if v in on_path:                       # closed a new cycle
-                cycle = path[on_path[v]:]
-                k = cycle.index(min(cycle))
-                rings.append(cycle[k:] + cycle[:k])
-            done.update(path)
+        rings = []
+        # From each head (no alive vertex leads to it) first: a chain that ends where a
+        # successor is missing or removed is a ring a lost record cut open, closed across
+        # the gap, so that the record costs the area by the vertices it missed, not the
+        # whole ring; a chain into a cycle is a tail, left out. Then the cycles left.
+        for start in sorted(v for v in alive if v not in led_to) + sorted(alive):
+            path, cycle_at = self._walk(start, alive, succ, done)
+            if cycle_at is not None:
+                path = path[cycle_at:]
+            elif len(path) < 2 or succ.get(path[-1]) in alive:
+                continue
+            k = path.index(min(path))
+            rings.append(path[k:] + path[:k])
         rings.sort(key=lambda ring: ring[0])
         return [[Vertex(v, alive[v].x_lat, alive[v].y_lat, alive[v].edge_type) for v in ring] for ring in rings]
+
+    @staticmethod
+    def _walk(start: int, alive, succ: dict[int, int], done: set[int]) -> tuple[list[int], int | None]:
+        """Follow successors from `start` over alive vertices not yet done, marking them
+        done: the path, and where on it the cycle it closed begins (None if it closed none:
+        it ran into a missing vertex, a removed one or one done before)."""
+        path: list[int] = []
+        on_path: dict[int, int] = {}
+        v = start
+        while v in alive and v not in done and v not in on_path:
+            on_path[v] = len(path)
+            path.append(v)
+            v = succ.get(v, 0)
+        done.update(path)
+        return path, on_path.get(v)
