@@ -35,7 +35,8 @@ POLY = RecordType(
         Field("x_lat", LATTICE_BITS, True, "0.2 m", doc="x on the lattice of the shared frame"),
         Field("y_lat", LATTICE_BITS, True, "0.2 m", doc="y on the lattice of the shared frame"),
         Field("edge_type", 2, unit="enum", hi=1, doc="edge to the successor: 0 frontier, 1 wall"),
-        Field("alive", 1, unit="bool", doc="0: removed, its predecessor and successor are joined"),
+        Field("alive", 1, unit="bool", doc="0: removed, its predecessor and successor are joined (the "
+              "sender says that with poly_gone)"),
         Field("kind", 3, unit="enum", hi=4, doc="why it was sent: 0 refresh, 1 edge split, 2 vanished, "
               "3 broken boundary, 4 emerged (accounting only)"),
     ),
