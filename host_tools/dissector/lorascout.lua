@@ -73,10 +73,10 @@ local f = {
   f_target_target_seq = ProtoField.uint32("lorascout.target.target_seq", "target_seq (targets)", base.DEC, nil, nil, "sender's target counter (RFC 1982 order)"),
   f_poly_gone_sender_id = ProtoField.uint32("lorascout.poly_gone.sender_id", "sender_id (id)", base.DEC, nil, nil, "robot that produced the record"),
   f_poly_gone_stamp = ProtoField.uint32("lorascout.poly_gone.stamp", "stamp (records)", base.DEC, nil, nil, "sender's polygon record counter (RFC 1982 order)"),
-  f_poly_gone_vertex_id = ProtoField.uint32("lorascout.poly_gone.vertex_id", "vertex_id (id)", base.DEC, nil, nil, "the vertex removed"),
-  f_poly_gone_pred_id = ProtoField.uint32("lorascout.poly_gone.pred_id", "pred_id (id)", base.DEC, nil, nil, "its predecessor, now joined to its successor"),
-  f_poly_gone_succ_id = ProtoField.uint32("lorascout.poly_gone.succ_id", "succ_id (id)", base.DEC, nil, nil, "its successor"),
-  f_poly_gone_kind = ProtoField.uint32("lorascout.poly_gone.kind", "kind (enum)", base.DEC, nil, nil, "why it was sent, as in poly (accounting only)"),
+  f_poly_gone_vertex_id = ProtoField.uint32("lorascout.poly_gone.vertex_id", "vertex_id (id)", base.DEC, nil, nil, "the vertex"),
+  f_poly_gone_pred_id = ProtoField.uint32("lorascout.poly_gone.pred_id", "pred_id (id)", base.DEC, nil, nil, "its predecessor in its ring"),
+  f_poly_gone_succ_id = ProtoField.uint32("lorascout.poly_gone.succ_id", "succ_id (id)", base.DEC, nil, nil, "its successor in its ring"),
+  f_poly_gone_kind = ProtoField.uint32("lorascout.poly_gone.kind", "kind (enum)", base.DEC, nil, nil, "why it was sent: 0 refresh, 1 edge split, 2 vanished, 3 broken boundary, 4 emerged (accounting only)"),
   f_place_sender_id = ProtoField.uint32("lorascout.place.sender_id", "sender_id (id)", base.DEC, nil, nil, "robot that produced the record"),
   f_place_oseq = ProtoField.uint32("lorascout.place.oseq", "oseq (records)", base.DEC, nil, nil, "origin's record counter (RFC 1982 order); the paper's timestamp"),
   f_place_x_dm = ProtoField.int32("lorascout.place.x_dm", "x_dm (dm)", base.DEC, nil, nil, "x of the place in the shared frame"),
@@ -261,7 +261,7 @@ local function dissect_target(pinfo, rec, tree)
   add_field(pinfo, rec, tree, f.f_target_target_seq, 57, 7, false, 0, 127)
 end
 
--- poly_gone: A vertex of the sender's polygon map removed at a stamp (Meier et al. VP packet): a poly tombstone without a place.
+-- poly_gone: A vertex of the sender's polygon map removed at a stamp, its predecessor and successor now joined (Meier et al. VP packet): a poly tombstone without a place.
 local function dissect_poly_gone(pinfo, rec, tree)
   add_field(pinfo, rec, tree, f.f_poly_gone_sender_id, 0, 8, false, 0, 255)
   add_field(pinfo, rec, tree, f.f_poly_gone_stamp, 8, 16, false, 0, 65535)

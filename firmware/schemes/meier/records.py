@@ -24,36 +24,34 @@ LATTICE_BITS = 15
 TARGET_SEQ_BITS = 7
 
 _STAMP = Field("stamp", STAMP_BITS, unit="records", doc="sender's polygon record counter (RFC 1982 order)")
+# Which vertex a record is about and its neighbours in its ring (joined, if it was removed).
+_VERTEX = (
+    Field("vertex_id", 12, unit="id", lo=1, hi=MAX_VERTEX_ID, doc="the vertex"),
+    Field("pred_id", 12, unit="id", hi=MAX_VERTEX_ID, doc="its predecessor in its ring"),
+    Field("succ_id", 12, unit="id", hi=MAX_VERTEX_ID, doc="its successor in its ring"),
+)
+_KIND = Field("kind", 3, unit="enum", hi=4, doc="why it was sent: 0 refresh, 1 edge split, 2 vanished, "
+              "3 broken boundary, 4 emerged (accounting only)")
 
 POLY = RecordType(
     1, "poly", 12,
     (
-        SENDER, _STAMP,
-        Field("vertex_id", 12, unit="id", lo=1, hi=MAX_VERTEX_ID, doc="the vertex"),
-        Field("pred_id", 12, unit="id", hi=MAX_VERTEX_ID, doc="its predecessor in its ring"),
-        Field("succ_id", 12, unit="id", hi=MAX_VERTEX_ID, doc="its successor in its ring"),
+        SENDER, _STAMP, *_VERTEX,
         Field("x_lat", LATTICE_BITS, True, "0.2 m", doc="x on the lattice of the shared frame"),
         Field("y_lat", LATTICE_BITS, True, "0.2 m", doc="y on the lattice of the shared frame"),
         Field("edge_type", 2, unit="enum", hi=1, doc="edge to the successor: 0 frontier, 1 wall"),
         Field("alive", 1, unit="bool", doc="0: removed, its predecessor and successor are joined (the "
               "sender says that with poly_gone)"),
-        Field("kind", 3, unit="enum", hi=4, doc="why it was sent: 0 refresh, 1 edge split, 2 vanished, "
-              "3 broken boundary, 4 emerged (accounting only)"),
+        _KIND,
     ),
     doc="One vertex of the sender's polygon map at a stamp (Meier et al. ES / B / VP / EP packets).",
 )
 
 POLY_GONE = RecordType(
     4, "poly_gone", 8,
-    (
-        SENDER, _STAMP,
-        Field("vertex_id", 12, unit="id", lo=1, hi=MAX_VERTEX_ID, doc="the vertex removed"),
-        Field("pred_id", 12, unit="id", hi=MAX_VERTEX_ID, doc="its predecessor, now joined to its successor"),
-        Field("succ_id", 12, unit="id", hi=MAX_VERTEX_ID, doc="its successor"),
-        Field("kind", 3, unit="enum", hi=4, doc="why it was sent, as in poly (accounting only)"),
-    ),
-    doc="A vertex of the sender's polygon map removed at a stamp (Meier et al. VP packet): a poly "
-        "tombstone without a place.",
+    (SENDER, _STAMP, *_VERTEX, _KIND),
+    doc="A vertex of the sender's polygon map removed at a stamp, its predecessor and successor now "
+        "joined (Meier et al. VP packet): a poly tombstone without a place.",
 )
 
 POLY_ALIVE = RecordType(
