@@ -127,6 +127,7 @@ class ExplorerAgent:
             withdraw=self.link.withdraw if self.link is not None else (lambda key: False),
             on_air_until_us=self.link.on_air_until_us if self.link is not None else (lambda: 0),
             radio_Bps=self.link.sustained_Bps() if self.link is not None else None,
+            bytes_sent=self.link.bytes_sent if self.link is not None else (lambda: 0),
             current_target=lambda: self.targets.target, pose_at=self.pose.pose_at,
             uwb=self.hal.uwb if self.hal.has("uwb") else None, aoa=self.hal.aoa if self.hal.has("aoa") else None,
             deployment=self.deployment, last_scan=lambda: self._last_scan))

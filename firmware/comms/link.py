@@ -222,6 +222,10 @@ class LinkLayer:
     def counters(self) -> dict[str, int]:
         return dict(self._counters)
 
+    def bytes_sent(self) -> int:
+        """Bytes of the frames this node has put on the air (its own and relayed)."""
+        return self._counters["sent.bytes"]
+
     @property
     def queue_len(self) -> int:
         return len(self._queue)

@@ -47,7 +47,7 @@ PRIORITY_REFRESH = 0
 # Records of the slow refresh round robin, per second, sent only while nothing else waits.
 REFRESH_RECORDS_PER_S = 0.5
 # The byte budget (meier_radio_share) saves up at most this long a quiet spell, and a burst
-# of forced records holds splits back for at most this long.
+# of traffic holds splits back for at most this long.
 BUDGET_HORIZON_S = 10.0
 # A frame that left the air is read by every receiver within this long (a few ticks).
 NEWS_READ_S = 0.2
@@ -93,6 +93,7 @@ class Meier(Scheme):
         radio_Bps = services.radio_Bps
         self._budget_Bps = None if radio_Bps is None else p.meier_radio_share * radio_Bps
         self._credit_B = 0.0        # bytes of the budget not yet used (negative: overdrawn)
+        self._bytes_seen = 0        # services.bytes_sent() when the budget was last brought up to date
         self._outbox: dict[int, tuple[int, PolyRecord | AliveRecord]] = {}   # vertex id (or -block-1) -> (priority, record)
         self._refresh_credit = 0.0
         self._outbox_us = self._news_until_us = 0     # the outbox task's clock; has_news until then
@@ -125,8 +126,11 @@ class Meier(Scheme):
         backlog = len(self._outbox) + self._poly_queued()
         splits = int(self._tokens) if backlog < p.meier_backlog_max and not self._finished else 0
         if self._budget_Bps is not None:
+            sent = s.bytes_sent()
             horizon_B = self._budget_Bps * BUDGET_HORIZON_S
-            self._credit_B = min(horizon_B, self._credit_B + self._budget_Bps * p.meier_update_s)
+            self._credit_B = min(horizon_B, max(-horizon_B, self._credit_B + self._budget_Bps * p.meier_update_s
+                                                - (sent - self._bytes_seen)))
+            self._bytes_seen = sent
             splits = min(splits, max(0, int(self._credit_B // POLY.size_bytes)))
         records = self.tracker.update(self.own.cells, splits, self.own.row0, self.own.col0)
         self._tokens -= self.tracker.splits
@@ -166,19 +170,14 @@ class Meier(Scheme):
         for key in order[:room]:
             priority, r = self._outbox.pop(key)
             if isinstance(r, PolyRecord):
-                rtype, values = poly_values(r)
-                ok = s.send(rtype, values, priority, key=("poly", r.vertex_id))
+                ok = s.send(*poly_values(r), priority, key=("poly", r.vertex_id))
                 self.counts["poly_records_sent"] += 1
                 self.records_by_kind[r.kind] += 1
             else:
-                rtype = "poly_alive"
-                ok = s.send(rtype, alive_values(r), priority, key=("poly_alive", r.block))
+                ok = s.send("poly_alive", alive_values(r), priority, key=("poly_alive", r.block))
                 self.counts["poly_alive_records_sent"] += 1
             if not ok:
                 self.counts["records_dropped_by_link"] += 1
-            elif self._budget_Bps is not None:
-                self._credit_B = max(-self._budget_Bps * BUDGET_HORIZON_S,
-                                     self._credit_B - DIALECT.by_name[rtype].size_bytes)
 
     # --- teammates' polygons ----------------------------------------------------------
     def on_record(self, rtype: str, values: Mapping[str, int], now_us: int) -> None:
