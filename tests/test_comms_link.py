@@ -62,6 +62,7 @@ def test_aggregates_up_to_max_payload_then_sends_the_rest():
     assert [v["x_cm"] for _, v in f2.records] == list(range(20, 25)) and f2.seq == 1
     c = link.counters
     assert (c["sent.frames"], c["sent.records"], c["sent.bytes"]) == (2, 25, 252 + 9 + 1 + 60)
+    assert link.bytes_sent() == 252 + 9 + 1 + 60
     assert c["airtime_us.g3"] == prof.airtime_us(252) + prof.airtime_us(70)
     assert c["tx_done.ok"] == 1 and link.queue_len == 0
 
