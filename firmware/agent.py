@@ -128,6 +128,8 @@ class ExplorerAgent:
             on_air_until_us=self.link.on_air_until_us if self.link is not None else (lambda: 0),
             radio_Bps=self.link.sustained_Bps() if self.link is not None else None,
             bytes_sent=self.link.bytes_sent if self.link is not None else (lambda: 0),
+            missed_from=self.link.missed_from if self.link is not None else (lambda sender: []),
+            keys_sent_in=self.link.keys_sent_in if self.link is not None else (lambda seq: ()),
             current_target=lambda: self.targets.target, pose_at=self.pose.pose_at,
             uwb=self.hal.uwb if self.hal.has("uwb") else None, aoa=self.hal.aoa if self.hal.has("aoa") else None,
             deployment=self.deployment, last_scan=lambda: self._last_scan))

@@ -402,3 +402,30 @@ def test_the_sustained_byte_rate_is_full_frames_within_the_duty_cycle_or_the_cap
     assert LinkLayer(0, profile("eu868-g1")).sustained_Bps() == pytest.approx(g3.sustained_Bps() / 10)
     assert LinkLayer(0, profile("ideal-100Bps")).sustained_Bps() == 100.0
     assert LinkLayer(0, profile("us915")).sustained_Bps() is None                # neither limit
+
+
+def test_a_receiver_knows_which_frames_it_missed_and_the_sender_what_keyed_records_they_carried():
+    prof = profile("ideal-100Bps")
+    tx, tx_radio = Link(1, prof), FakeRadio(prof)
+    rx, rx_radio = Link(2, prof), FakeRadio(prof)
+    now = 0
+    for i in range(8):                                  # frames 0..7, one keyed record each
+        tx.enqueue("topo", topo(i), key=("topo", i))
+        now = tx_radio.busy_until_us
+        step(tx, tx_radio, now)
+    assert [tx.keys_sent_in(i) for i in (0, 5, 7)] == [(("topo", 0),), (("topo", 5),), (("topo", 7),)]
+    assert tx.keys_sent_in(8) == ()                     # not sent (yet)
+    for seq in (0, 1, 4):
+        rx_radio.deliver(tx_radio.sent[seq][1])
+    step(rx, rx_radio, now)
+    assert rx.missed_from(1) == [2, 3]                  # up to the newest heard
+    rx_radio.deliver(tx_radio.sent[7][1])
+    rx_radio.deliver(tx_radio.sent[3][1])               # a late one fills its gap
+    step(rx, rx_radio, now)
+    assert rx.missed_from(1) == [2, 5, 6]
+    assert rx.missed_from(9) == []                      # never heard
+    late, late_radio = Link(3, prof), FakeRadio(prof)   # came into range at frame 5
+    for seq in (5, 7):
+        late_radio.deliver(tx_radio.sent[seq][1])
+    step(late, late_radio, now)
+    assert late.missed_from(1) == [6]

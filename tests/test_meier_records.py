@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from firmware.comms.codec import decode, encode
 from firmware.comms.frame import frame_size_bytes
 from firmware.comms.schema import MAX_FRAME_BYTES, record_type
-from firmware.schemes.meier.records import alive_record, alive_values, poly_record, poly_values
+from firmware.schemes.meier.records import alive_record, alive_values, nack_seqs, nack_values, poly_record, poly_values
 from firmware.schemes.meier.replica import MAX_VERTEX_ID, AliveRecord, PolyRecord
 
 
@@ -37,3 +37,15 @@ def test_a_vertex_state_survives_the_codec_and_a_removed_one_goes_short_without_
 def test_an_alive_block_survives_the_codec(r):
     got = decode("poly_alive", encode("poly_alive", alive_values(r)))
     assert alive_record(got.values) == r
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(0, 65535), st.lists(st.integers(1, 40), max_size=30))
+def test_lost_frames_named_in_nack_records_are_exactly_those_lost(first, steps):
+    seqs = [first]
+    for d in steps:
+        seqs.append((seqs[-1] + d) % 65536)
+    records = nack_values(3, 1, seqs)
+    assert len(records) <= len(seqs)
+    named = [seq for v in records for seq in nack_seqs(decode("poly_nack", encode("poly_nack", v)).values)]
+    assert named == seqs

@@ -164,7 +164,11 @@ class LinkLayer:
         # queue entries: [priority, order, type name, record bytes, key]
         self._queue: list[list[Any]] = []
         self._relay: deque[bytes] = deque()
-        self._seen: dict[int, list[int]] = {}             # sender -> [highest seq, window mask]
+        # sender -> [highest seq, window mask, frames heard in the window since the first]
+        self._seen: dict[int, list[int]] = {}
+        # Own frames lately sent: (seq, the keys of the records they carried), for a teammate
+        # that says it lost one.
+        self._frames_sent: deque[tuple[int, tuple[Hashable, ...]]] = deque(maxlen=DEDUP_WINDOW)
         self._rx: list[tuple[int, str, dict[str, int]]] = []
         self._airtime_key = f"airtime_us.{profile.sub_band}"
         self._counters = dict.fromkeys(counter_names(profile.sub_band), 0)
@@ -298,6 +302,7 @@ class LinkLayer:
         else:
             taken_ids = {id(e) for e in taken}
             self._queue = [e for e in self._queue if id(e) not in taken_ids]
+            self._frames_sent.append((self._seq, tuple(e[4] for e in taken if e[4] is not None)))
             self._seq = (self._seq + 1) % SEQ_MODULUS
             self._counters["sent.records"] += len(taken)
         if self._rate_window_bytes is not None:
@@ -375,22 +380,41 @@ class LinkLayer:
         sender restarted: accept it and restart the window."""
         st = self._seen.get(sender)
         if st is None:
-            self._seen[sender] = [seq, 1]
+            self._seen[sender] = [seq, 1, 1]
             return False
-        hi, mask = st
+        hi, mask, span = st
         if seq_newer(seq, hi):
             shift = (seq - hi) % SEQ_MODULUS
             st[0] = seq
             st[1] = ((mask << shift) | 1) & ((1 << DEDUP_WINDOW) - 1) if shift < DEDUP_WINDOW else 1
+            st[2] = min(DEDUP_WINDOW, span + shift) if shift < DEDUP_WINDOW else 1
             return False
         back = (hi - seq) % SEQ_MODULUS
         if back >= DEDUP_WINDOW:
-            self._seen[sender] = [seq, 1]
+            self._seen[sender] = [seq, 1, 1]
             return False
         if mask >> back & 1:
             return True
         st[1] = mask | (1 << back)
+        st[2] = max(span, back + 1)
         return False
+
+    def missed_from(self, sender: int) -> list[int]:
+        """Sequence numbers of the sender's frames this node has not received, among the
+        last DEDUP_WINDOW up to the newest it has (from the first it heard), oldest first."""
+        st = self._seen.get(sender)
+        if st is None:
+            return []
+        hi, mask, span = st
+        return [(hi - back) % SEQ_MODULUS for back in range(span - 1, 0, -1) if not mask >> back & 1]
+
+    def keys_sent_in(self, seq: int) -> tuple[Hashable, ...]:
+        """The keys of the keyed records this node's frame `seq` carried (none if it is not
+        among the last DEDUP_WINDOW frames it sent)."""
+        for sent_seq, keys in self._frames_sent:
+            if sent_seq == seq:
+                return keys
+        return ()
 
     def _on_frame(self, payload: bytes) -> None:
         res = decode_frame(payload, self.dialects)

@@ -85,6 +85,8 @@ class Services:
     on_air_until_us: Callable[[], int] = lambda: 0           # when this robot's last frame ends on the air
     radio_Bps: float | None = None       # bytes a second the link can send for ever (LinkLayer.sustained_Bps)
     bytes_sent: Callable[[], int] = lambda: 0               # bytes this robot has put on the air so far
+    missed_from: Callable[[int], list[int]] = lambda sender: []    # a teammate's frames lost lately (seqs)
+    keys_sent_in: Callable[[int], tuple] = lambda seq: ()         # keys of the records in an own recent frame
     current_target: Callable[[], Target | None] = lambda: None   # where the robot is heading
     # This robot's pose (x_m, y_m, yaw_rad) at a time, for samples taken then (services.pose).
     pose_at: Callable[[int], tuple[float, float, float] | None] = lambda stamp_us: None

@@ -179,15 +179,21 @@ class PolygonMap:
             self._refreshed_up_to = 0
         return out
 
+    def last_record(self, v: int) -> PolyRecord | None:
+        """The newest record made of vertex v (None if none was): sent again as it is, it
+        tells a receiver that lost it what it would have held."""
+        return self._mirror.held(v)
+
+    def alive_block(self, block: int) -> AliveRecord:
+        """Which ids of a block are alive now."""
+        bits = 0
+        for v in range(block * ALIVE_BLOCK_IDS, (block + 1) * ALIVE_BLOCK_IDS):
+            if self.alive(v):
+                bits |= 1 << (v % ALIVE_BLOCK_IDS)
+        return AliveRecord(self.sender_id, self._next_stamp(), block, bits)
+
     def _alive_blocks(self) -> list[AliveRecord]:
-        out = []
-        for block in range((self._next_id - 1) // ALIVE_BLOCK_IDS + 1):
-            bits = 0
-            for v in range(block * ALIVE_BLOCK_IDS, (block + 1) * ALIVE_BLOCK_IDS):
-                if self.alive(v):
-                    bits |= 1 << (v % ALIVE_BLOCK_IDS)
-            out.append(AliveRecord(self.sender_id, self._next_stamp(), block, bits))
-        return out
+        return [self.alive_block(block) for block in range((self._next_id - 1) // ALIVE_BLOCK_IDS + 1)]
 
     # --- inside -----------------------------------------------------------------------------
     def _next_stamp(self) -> int:

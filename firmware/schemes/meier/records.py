@@ -5,14 +5,16 @@ air (meier.md 5.2). Dialect id 2.
 (replica.PolyRecord); `poly_gone` is the same for a vertex removed, without what a removed
 vertex no longer has (a place, an edge): 8 bytes instead of 12, and vertices go about as
 often as they come; `poly_alive` says which ids of a block of 64 are alive at a stamp
-(replica.AliveRecord); `target` is the paper's target point transmission (TPT): where the
-sender is heading, or that it released its target, with a 7-bit sequence number so that an
-older one never overrides a newer.
+(replica.AliveRecord); `poly_nack` names frames of a teammate this robot lost, which the
+teammate answers by sending the polygon records they carried again; `target` is the paper's
+target point transmission (TPT): where the sender is heading, or that it released its
+target, with a 7-bit sequence number so that an older one never overrides a newer.
 """
 from __future__ import annotations
 
 from collections.abc import Mapping
 
+from firmware.comms.frame import SEQ_MODULUS
 from firmware.comms.schema import SENDER, Dialect, Field, RecordType, position_cm
 from firmware.schemes.meier.replica import ALIVE_BLOCK_IDS, MAX_VERTEX_ID, STAMP_BITS, AliveRecord, PolyRecord
 
@@ -54,6 +56,20 @@ POLY_GONE = RecordType(
         "joined (Meier et al. VP packet): a poly tombstone without a place.",
 )
 
+NACK_MORE_BITS = 16
+
+POLY_NACK = RecordType(
+    5, "poly_nack", 6,
+    (
+        SENDER,
+        Field("of_id", 8, unit="id", doc="the teammate whose frames the sender lost"),
+        Field("first_seq", 16, unit="frames", doc="the first frame lost (the link's sequence number)"),
+        Field("more", NACK_MORE_BITS, unit="bits", doc="bit k: frame first_seq + 1 + k lost too"),
+    ),
+    doc="Frames of a teammate this robot lost: the teammate sends the polygon records they carried again "
+        "(meier.md 5.4's poly_nack, by frame).",
+)
+
 POLY_ALIVE = RecordType(
     2, "poly_alive", 12,
     (
@@ -75,7 +91,7 @@ TARGET = RecordType(
     doc="Target point transmission (TPT): where the sender is heading (Meier et al. Algorithm 1 line 8).",
 )
 
-DIALECT = Dialect(DIALECT_ID, "meier", (POLY, POLY_ALIVE, TARGET, POLY_GONE))
+DIALECT = Dialect(DIALECT_ID, "meier", (POLY, POLY_ALIVE, TARGET, POLY_GONE, POLY_NACK))
 
 assert POLY.bits_used == 96 and POLY_GONE.bits_used == 63 and POLY_ALIVE.bits_used == 94
 assert (1 << 6) * ALIVE_BLOCK_IDS > MAX_VERTEX_ID
@@ -107,3 +123,23 @@ def alive_values(r: AliveRecord) -> dict[str, int]:
 
 def alive_record(v: Mapping[str, int]) -> AliveRecord:
     return AliveRecord(v["sender_id"], v["stamp"], v["block"], v["alive_lo"] | v["alive_hi"] << 32)
+
+
+def nack_values(sender_id: int, of_id: int, seqs: list[int]) -> list[dict[str, int]]:
+    """poly_nack records that name these frame sequence numbers (oldest first, as few as
+    the `more` bits allow)."""
+    out: list[dict[str, int]] = []
+    for seq in seqs:
+        if out:
+            k = (seq - out[-1]["first_seq"]) % SEQ_MODULUS - 1
+            if 0 <= k < NACK_MORE_BITS:
+                out[-1]["more"] |= 1 << k
+                continue
+        out.append({"sender_id": sender_id, "of_id": of_id, "first_seq": seq, "more": 0})
+    return out
+
+
+def nack_seqs(v: Mapping[str, int]) -> list[int]:
+    """The frame sequence numbers a poly_nack record names."""
+    return [v["first_seq"]] + [(v["first_seq"] + 1 + k) % SEQ_MODULUS
+                               for k in range(NACK_MORE_BITS) if v["more"] >> k & 1]

@@ -94,6 +94,10 @@ class Replica:
             self._vertices[record.vertex_id] = record
             self.version += 1
 
+    def held(self, vertex_id: int) -> PolyRecord | None:
+        """The newest record of a vertex held (None if none)."""
+        return self._vertices.get(vertex_id)
+
     def _alive(self, r: PolyRecord) -> bool:
         block = self._blocks.get(r.vertex_id // ALIVE_BLOCK_IDS)
         if block is not None and newer(block.stamp, r.stamp):

@@ -5,9 +5,10 @@ Variant `polygons` (the paper's scheme, over LoRa): every meier_update_s the rob
 is pooled into its monotone coarse raster (raster.CoarseRaster), the polygon map follows its
 boundary (tracker.PolygonTracker: the forced updates, and as many edge splits as the split
 rate's token bucket holds, none while meier_backlog_max polygon records still wait on the
-link), and the vertices it changed go out as `poly` records, the forced ones first. Between
-changes a slow round robin re-sends live vertices and which ids are alive, for receivers
-that lost records. Teammates' records build their polygon maps (replica.Replica, a pure
+link), and the vertices it changed go out as `poly` records, the forced ones first. A
+teammate that finds frames of this robot missing (gaps in the link's sequence numbers)
+names them in `poly_nack` records, and this robot sends the polygon records they carried
+again; between changes a slow round robin re-sends live vertices and which ids are alive. Teammates' records build their polygon maps (replica.Replica, a pure
 function of the records held), rasterised into a team layer that fills the cells this robot
 has not observed itself (LocalMap.team): it plans on the combined map.
 
@@ -33,8 +34,8 @@ from firmware.schemes.base import (PRIORITY_INFO, PRIORITY_MOTION, PRIORITY_STAT
 from firmware.schemes.meier.coordination import TARGET_SEQ_MOD, TeamTargets, discount
 from firmware.schemes.meier.polygons import EDGE_SPLIT
 from firmware.schemes.meier.raster import CoarseRaster, rasterise_rings
-from firmware.schemes.meier.records import (DIALECT, LATTICE_M, POLY, alive_record, alive_values, poly_record,
-                                            poly_values)
+from firmware.schemes.meier.records import (DIALECT, LATTICE_M, POLY, alive_record, alive_values, nack_seqs,
+                                            nack_values, poly_record, poly_values)
 from firmware.schemes.meier.replica import AliveRecord, PolyRecord, Replica
 from firmware.schemes.meier.tracker import PolygonTracker
 from hal.samples import OdometrySample
@@ -74,7 +75,8 @@ class Meier(Scheme):
         self._said: tuple[float, float] | None = None      # the target last claimed on the air
         self._said_us = 0
         self.counts = {"target_records_sent": 0, "poly_records_sent": 0, "poly_alive_records_sent": 0,
-                       "edge_splits": 0, "records_dropped_by_link": 0}
+                       "edge_splits": 0, "records_dropped_by_link": 0, "nack_records_sent": 0,
+                       "poly_records_sent_again": 0}
         self.records_by_kind = [0] * 5      # poly records by kind (polygons.REFRESH .. EMERGED)
         self._team_news = False             # the team layer changed since wake_up() last looked
         self._finished = False              # the robot stopped: no more splits or refresh
@@ -98,6 +100,7 @@ class Meier(Scheme):
         self._refresh_credit = 0.0
         self._outbox_us = self._news_until_us = 0     # the outbox task's clock; has_news until then
         self.replicas: dict[int, Replica] = {}
+        self._asked: dict[int, set[int]] = {}      # teammate -> its lost frames this robot asked for
         # Per teammate, kept while its replica's version is the same: its rings as arrays,
         # and their raster on the team layer's last grid.
         self._sender_arrays: dict[int, tuple[int, tuple | None]] = {}
@@ -158,7 +161,8 @@ class Meier(Scheme):
         """Feed the link from the outbox, the most urgent first, keeping at most
         meier_backlog_max polygon records queued there."""
         s = self.s
-        waiting = self._poly_queued() + s.queued("poly_alive")
+        self._ask_for_lost_frames()
+        waiting = self._poly_queued() + s.queued("poly_alive") + s.queued("poly_nack")
         self._outbox_us = now_us
         if waiting or self._outbox:
             self._news_until_us = now_us + int(NEWS_READ_S * 1e6)
@@ -179,6 +183,29 @@ class Meier(Scheme):
             if not ok:
                 self.counts["records_dropped_by_link"] += 1
 
+    def _ask_for_lost_frames(self) -> None:
+        """Name each teammate's frames this robot lost (once each) in poly_nack records."""
+        for rid in sorted(self.s.roster.members()):
+            lost = self.s.missed_from(rid)
+            asked = self._asked.setdefault(rid, set())
+            new = [seq for seq in lost if seq not in asked]
+            self._asked[rid] = asked & set(lost) | set(new)
+            for values in nack_values(self.s.robot_id, rid, new):
+                self.s.send("poly_nack", values, PRIORITY_FORCED)
+                self.counts["nack_records_sent"] += 1
+
+    def _send_again(self, seqs: list[int]) -> None:
+        """A teammate lost these frames of this robot: the polygon records they carried go
+        again, as they were (the newest of each vertex; which ids of a block are alive now)."""
+        for seq in seqs:
+            for key in self.s.keys_sent_in(seq):
+                kind, which = key if isinstance(key, tuple) and len(key) == 2 else (None, None)
+                r = self.tracker.map.last_record(which) if kind == "poly" else (
+                    self.tracker.map.alive_block(which) if kind == "poly_alive" else None)
+                if r is not None:
+                    self._post(r, PRIORITY_FORCED)
+                    self.counts["poly_records_sent_again"] += 1
+
     # --- teammates' polygons ----------------------------------------------------------
     def on_record(self, rtype: str, values: Mapping[str, int], now_us: int) -> None:
         if rtype == "target":
@@ -186,6 +213,10 @@ class Meier(Scheme):
                                     bool(values["claimed"]), values["target_seq"], now_us)
             return
         if self.variant != "polygons" or values["sender_id"] == self.s.robot_id:
+            return
+        if rtype == "poly_nack":
+            if values["of_id"] == self.s.robot_id:
+                self._send_again(nack_seqs(values))
             return
         record = alive_record(values) if rtype == "poly_alive" else poly_record(rtype, values)
         self.replicas.setdefault(record.sender_id, Replica()).add(record)
