@@ -5,20 +5,22 @@ Variant `polygons` (the paper's scheme, over LoRa): every meier_update_s the rob
 is pooled into its monotone coarse raster (raster.CoarseRaster), the polygon map follows its
 boundary (tracker.PolygonTracker: the forced updates, and as many edge splits as the split
 rate's token bucket holds, none while meier_backlog_max polygon records still wait on the
-link), and the vertices it changed go out as `poly` records, the forced ones first. A
-teammate that finds frames of this robot missing (gaps in the link's sequence numbers)
-names them in `poly_nack` records, and this robot sends the polygon records they carried
-again; between changes a slow round robin re-sends live vertices and which ids are alive. Teammates' records build their polygon maps (replica.Replica, a pure
-function of the records held), rasterised into a team layer that fills the cells this robot
-has not observed itself (LocalMap.team): it plans on the combined map.
+link or while all the robot has sent is over meier_radio_share of what its link sustains),
+and the vertices it changed go out as `poly` records, the forced ones first. A
+teammate that finds frames of this robot missing (gaps in the link's sequence numbers) names
+them in `poly_nack` records, and this robot sends the polygon records they carried again;
+between changes a slow round robin re-sends live vertices and which ids are alive.
+Teammates' records build their polygon maps (replica.Replica, a pure function of the records
+held), rasterised into a team layer that fills the cells this robot has not observed itself
+(LocalMap.team): it plans on the combined map.
 
 Variant `targets`: the coordination alone (the dense baseline adds dense maps to it for the
 paper's comparison, `meier-full`).
 
 Both: the robot broadcasts its target (`target` records: on a new target, every
 meier_target_keepalive_s, and a release when it has none) and discounts candidates near
-teammates' targets (coordination.discount). Beyond the local window it routes along a
-graph of its own places, as the no-sharing baseline does.
+teammates' targets (coordination.discount). Beyond the local window it routes along a graph
+of its own places, as the no-sharing baseline does.
 """
 from __future__ import annotations
 
