@@ -40,27 +40,12 @@ class PolygonTracker:
         what changed."""
         contours = [Contour(c.corners + (col0, row0), smooth_edge_types(c.edge_types, self.type_min_run))
                     for c in trace_contours(state)]
-        passes: dict[tuple[int, int], int] = {}
-        for c in contours:
-            for p in map(tuple, c.corners.tolist()):
-                passes[p] = passes.get(p, 0) + 1
-        place: dict[tuple[int, int], tuple[int, int]] = {}        # corner -> (contour, position)
-        for label, c in enumerate(contours):
-            for k, p in enumerate(map(tuple, c.corners.tolist())):
-                if passes[p] == 1:
-                    place[p] = (label, k)
-        on: dict[int, dict[int, int]] = {}                       # contour -> {position: vertex}
-        for v in self.map.live_vertices():
-            x, y, _ = self.map.vertex(v)
-            if (x, y) in place:
-                label, k = place[(x, y)]
-                on.setdefault(label, {})[k] = v
+        usable, on = self._vertices_on(contours)
         contours = [Contour(c.corners, hold_junctions(c.edge_types, sorted(on.get(label, {})), self.junction_hold))
                     for label, c in enumerate(contours)]
         self._rings = []
         for label, c in enumerate(contours):
-            usable = np.array([passes[p] == 1 for p in map(tuple, c.corners.tolist())], bool)
-            ring = self._ring_on(c, usable, on.get(label, {}))
+            ring = self._ring_on(c, usable[label], on.get(label, {}))
             if ring is not None:
                 self._rings.append(ring)
         in_rings = {v for _, ids in self._rings for v in ids.values()}
@@ -79,6 +64,30 @@ class PolygonTracker:
         """The largest distance (lattice units) from a boundary corner to its polygon edge,
         beyond eps (0 when every edge is within eps)."""
         return max((rs.worst_error for rs, _ in self._rings), default=0.0)
+
+    def _vertices_on(self, contours: list[Contour]) -> tuple[list[np.ndarray], dict[int, dict[int, int]]]:
+        """Per contour, which of its corners are usable (the boundary passes them once: not a
+        pinch), and the live vertices on usable corners as {contour: {position: vertex}}."""
+        if not contours:
+            return [], {}
+        lengths = np.array([len(c.corners) for c in contours])
+        keys = _corner_keys(np.concatenate([c.corners for c in contours]))
+        unique, first, inverse, passes = np.unique(keys, return_index=True, return_inverse=True, return_counts=True)
+        once = passes[inverse] == 1
+        usable = np.split(once, np.cumsum(lengths)[:-1])
+        on: dict[int, dict[int, int]] = {}
+        live = self.map.live_vertices()
+        if live:
+            wanted = _corner_keys(np.array([self.map.vertex(v)[:2] for v in live], np.int64))
+            at = np.minimum(np.searchsorted(unique, wanted), len(unique) - 1)
+            hit = (unique[at] == wanted) & (passes[at] == 1)
+            label_of = np.repeat(np.arange(len(contours)), lengths)
+            position_of = np.arange(len(keys)) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+            corner = first[at[hit]]
+            for v, label, k in zip(np.asarray(live)[hit].tolist(), label_of[corner].tolist(),
+                                   position_of[corner].tolist()):
+                on.setdefault(label, {})[k] = v
+        return usable, on
 
     def _ring_on(self, c: Contour, usable: np.ndarray, ids: dict[int, int]):
         """The ring of one contour: its simplifier, and the vertex id at each of its vertex
@@ -111,3 +120,9 @@ class PolygonTracker:
             x, y = (int(v) for v in rs.corners[k])
             ids[k] = self.map.split_edge(before, x, y)
         return max_splits
+
+
+def _corner_keys(corners: np.ndarray) -> np.ndarray:
+    """One int64 per lattice corner (x, y), |x|, |y| < 2**31."""
+    xy = np.asarray(corners, np.int64)
+    return (xy[:, 0] << 32) | (xy[:, 1] + (1 << 31))
