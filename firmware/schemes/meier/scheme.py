@@ -92,7 +92,8 @@ class Meier(Scheme):
         self._k = round(k)
         self.own = CoarseRaster(self._k)
         self.tracker = PolygonTracker(services.robot_id, p.meier_eps_m / LATTICE_M, p.meier_type_min_run,
-                                      round(p.meier_junction_hold_m / LATTICE_M))
+                                      round(p.meier_junction_hold_m / LATTICE_M),
+                                      min_region_cells=math.pi * p.robot_radius_m ** 2 / LATTICE_M ** 2)
         self._tokens = 0.0
         radio_Bps = services.radio_Bps
         self._budget_Bps = None if radio_Bps is None else p.meier_radio_share * radio_Bps

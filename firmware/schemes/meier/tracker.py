@@ -7,7 +7,9 @@ Each update traces the new boundary (contours.trace_contours), then:
 2. rings: the vertices left on each contour, in the contour's order, are its ring (a
    boundary broken in two, or two joined, is the same relink); a contour left with one
    vertex gets the corner farthest from it, one with none starts from its lowest corner
-   and the farthest from that (meier.md A7); a corner where the crack type changes is a
+   and the farthest from that (meier.md A7); a free region too small to hold the robot's
+   body gets no ring (no robot can go there, so no teammate needs it; in a cluttered office
+   such specks are most of the rings and of the churn); a corner where the crack type changes is a
    vertex, unless a vertex a few wall cracks back can hold that junction
    (contours.hold_junctions), and a vertex's edge is a wall only if every crack along it
    is one;
@@ -18,16 +20,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware.schemes.meier.contours import Contour, hold_junctions, smooth_edge_types, trace_contours
+from firmware.schemes.meier.contours import Contour, hold_junctions, signed_area, smooth_edge_types, trace_contours
 from firmware.schemes.meier.polygons import PolygonMap
 from firmware.schemes.meier.replica import PolyRecord
 from firmware.schemes.meier.simplify import RingSimplifier
 
 
 class PolygonTracker:
-    def __init__(self, sender_id: int, eps_cells: float, type_min_run: int = 1, junction_hold: int = 0) -> None:
+    def __init__(self, sender_id: int, eps_cells: float, type_min_run: int = 1, junction_hold: int = 0,
+                 min_region_cells: float = 0.0) -> None:
         self.map = PolygonMap(sender_id)
         self.eps = eps_cells
+        self.min_region_cells = min_region_cells    # free regions of less area are not traced
         self.type_min_run = type_min_run    # cracks: shorter runs of one type take the type around
         self.junction_hold = junction_hold  # cracks: a junction moves back onto a vertex this near
         # Per ring: its simplifier and the vertex id at each of its corners that is one.
@@ -38,14 +42,15 @@ class PolygonTracker:
         """Follow the boundary of `state` (a classified grid whose cell (0, 0) is cell
         (row0, col0) of the lattice; vertices sit on the lattice's corners); the records of
         what changed."""
-        contours = [Contour(c.corners + (col0, row0), smooth_edge_types(c.edge_types, self.type_min_run))
-                    for c in trace_contours(state)]
-        usable, on = self._vertices_on(contours)
-        contours = [Contour(c.corners, hold_junctions(c.edge_types, sorted(on.get(label, {})), self.junction_hold))
-                    for label, c in enumerate(contours)]
+        traced = [Contour(c.corners + (col0, row0), smooth_edge_types(c.edge_types, self.type_min_run))
+                  for c in trace_contours(state)]
+        usable, on = self._vertices_on(traced)
         self._rings = []
-        for label, c in enumerate(contours):
-            ring = self._ring_on(c, usable[label], on.get(label, {}))
+        for label, c in enumerate(traced):
+            if self._too_small(c.corners):
+                continue
+            held = Contour(c.corners, hold_junctions(c.edge_types, sorted(on.get(label, {})), self.junction_hold))
+            ring = self._ring_on(held, usable[label], on.get(label, {}))
             if ring is not None:
                 self._rings.append(ring)
         in_rings = {v for _, ids in self._rings for v in ids.values()}
@@ -65,9 +70,14 @@ class PolygonTracker:
         beyond eps (0 when every edge is within eps)."""
         return max((rs.worst_error for rs, _ in self._rings), default=0.0)
 
+    def _too_small(self, corners: np.ndarray) -> bool:
+        """Is this the outer boundary of a free region of less than min_region_cells? (Holes
+        are kept at any size: what they enclose may be an obstacle.)"""
+        return 0.0 < signed_area(corners) < self.min_region_cells
+
     def _vertices_on(self, contours: list[Contour]) -> tuple[list[np.ndarray], dict[int, dict[int, int]]]:
         """Per contour, which of its corners are usable (the boundary passes them once: not a
-        pinch), and the live vertices on usable corners as {contour: {position: vertex}}."""
+        pinch, even with a region too small to trace), and the live vertices on usable corners as {contour: {position: vertex}}."""
         if not contours:
             return [], {}
         lengths = np.array([len(c.corners) for c in contours])
