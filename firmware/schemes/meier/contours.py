@@ -34,10 +34,16 @@ def trace_contours(state: np.ndarray) -> list[Contour]:
     return [Contour(corners[a:b], types[a:b]) for a, b in zip(starts[:-1].tolist(), starts[1:].tolist())]
 
 
+def rotated(a: np.ndarray, k: int) -> np.ndarray:
+    """A closed sequence started at its element k (-len(a) <= k <= len(a)): np.roll(a, -k)
+    along the first axis, without np.roll's cost on the short rings traced by the thousand."""
+    return np.concatenate((a[k:], a[:k]))
+
+
 def signed_area(corners: np.ndarray) -> float:
     """Shoelace area of a closed ring of (x, y): positive counter-clockwise."""
     x, y = corners[:, 0].astype(np.float64), corners[:, 1].astype(np.float64)
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    return 0.5 * float(np.dot(x, rotated(y, 1)) - np.dot(rotated(x, 1), y))
 
 
 def smooth_edge_types(types: np.ndarray, min_run: int) -> np.ndarray:
@@ -49,7 +55,7 @@ def smooth_edge_types(types: np.ndarray, min_run: int) -> np.ndarray:
     if min_run <= 1:
         return out
     for short in (FRONTIER_EDGE, WALL_EDGE):
-        change = np.nonzero(out != np.roll(out, 1))[0]
+        change = np.nonzero(out != rotated(out, -1))[0]
         if len(change) == 0:
             return out
         lengths = np.diff(np.append(change, change[0] + len(out)))
@@ -72,7 +78,7 @@ def hold_junctions(types: np.ndarray, kept: np.ndarray, max_cracks: int) -> np.n
         return out
     is_kept = np.zeros(n, bool)
     is_kept[np.asarray(kept, np.int64)] = True
-    for k in np.nonzero(types != np.roll(types, 1))[0].tolist():
+    for k in np.nonzero(types != rotated(types, -1))[0].tolist():
         if is_kept[k]:
             continue
         into_frontier = types[k] == FRONTIER_EDGE      # wall cracks before corner k, else after it

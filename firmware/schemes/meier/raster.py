@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from firmware import kernels
-from firmware.schemes.meier.contours import signed_area
+from firmware.schemes.meier.contours import rotated, signed_area
 
 # Coarse cells the own raster grows by at a time, so it is not reallocated every update.
 GROW_CELLS = 32
@@ -90,7 +90,7 @@ def rasterise_rings(rings: list[np.ndarray], wall: list[np.ndarray], shape: tupl
     if not rings:
         return out
     a = np.concatenate(rings).astype(np.float64)
-    b = np.concatenate([np.roll(r, -1, axis=0) for r in rings]).astype(np.float64)
+    b = np.concatenate([rotated(r, 1) for r in rings]).astype(np.float64)
     is_wall = np.concatenate(wall).astype(bool)
     small_hole = np.concatenate([np.full(len(r), 0.0 < -signed_area(r) < min_hole_cells) for r in rings])
     # Even-odd fill: each non-horizontal edge flips the cells of the rows it crosses (within

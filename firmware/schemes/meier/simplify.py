@@ -17,6 +17,8 @@ import heapq
 
 import numpy as np
 
+from firmware.schemes.meier.contours import rotated
+
 
 def point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance from each point (rows of p) to the closed segment a-b: one segment for all
@@ -50,7 +52,7 @@ class RingSimplifier:
             usable = np.array([counts[k] == 1 for k in keys], bool)      # not a pinch
         self._usable = np.asarray(usable, bool)
         types = self.edge_types = np.asarray(edge_types)
-        mandatory = np.nonzero((types != np.roll(types, 1)) & self._usable)[0].tolist()
+        mandatory = np.nonzero((types != rotated(types, -1)) & self._usable)[0].tolist()
         if vertices:
             mandatory = sorted(set(mandatory) | set(vertices))
         elif not mandatory:
@@ -111,7 +113,7 @@ class RingSimplifier:
         a wall only if every crack along it is one, so that no frontier is ever drawn as a
         wall (a type change at a pinch corner, which is never a vertex, mixes types)."""
         v0 = self.vertices[0]
-        return np.minimum.reduceat(np.roll(self.edge_types, -v0), [v - v0 for v in self.vertices]).tolist()
+        return np.minimum.reduceat(rotated(self.edge_types, v0), [v - v0 for v in self.vertices]).tolist()
 
     @property
     def worst_error(self) -> float:

@@ -36,23 +36,33 @@ class PolygonTracker:
         self.junction_hold = junction_hold  # cracks: a junction moves back onto a vertex this near
         # Per ring: its simplifier and the vertex id at each of its corners that is one.
         self._rings: list[tuple[RingSimplifier, dict[int, int]]] = []
+        # The rings as the last update left them, by their contour (corners, crack types,
+        # usable corners) and vertices: a contour that comes back with the same vertices and
+        # held crack types has the same ring (most of them, once a room is seen), and is not
+        # simplified again.
+        self._unchanged: dict[tuple, tuple[RingSimplifier, dict[int, int]]] = {}
         self.splits = 0          # edge splits the last update made
 
     def update(self, state: np.ndarray, max_splits: int, row0: int = 0, col0: int = 0) -> list[PolyRecord]:
         """Follow the boundary of `state` (a classified grid whose cell (0, 0) is cell
         (row0, col0) of the lattice; vertices sit on the lattice's corners); the records of
         what changed."""
-        traced = [Contour(c.corners + (col0, row0), smooth_edge_types(c.edge_types, self.type_min_run))
-                  for c in trace_contours(state)]
+        traced = [Contour(c.corners + (col0, row0), c.edge_types) for c in trace_contours(state)]
         usable, on = self._vertices_on(traced)
-        self._rings = []
+        self._rings, sources = [], []
         for label, c in enumerate(traced):
             if self._too_small(c.corners):
                 continue
-            held = Contour(c.corners, hold_junctions(c.edge_types, sorted(on.get(label, {})), self.junction_hold))
-            ring = self._ring_on(held, usable[label], on.get(label, {}))
+            ids = on.get(label, {})
+            types = hold_junctions(smooth_edge_types(c.edge_types, self.type_min_run), sorted(ids),
+                                   self.junction_hold)
+            source = (c.corners.tobytes(), c.edge_types.tobytes(), usable[label].tobytes())
+            ring = self._unchanged.get((*source, tuple(sorted(ids.items()))))
+            if ring is None or not np.array_equal(ring[0].edge_types, types):
+                ring = self._ring_on(Contour(c.corners, types), usable[label], ids)
             if ring is not None:
                 self._rings.append(ring)
+                sources.append(source)
         in_rings = {v for _, ids in self._rings for v in ids.values()}
         for v in self.map.live_vertices():
             if v not in in_rings:              # off the boundary, on a pinch, or on a contour too small
@@ -62,6 +72,8 @@ class PolygonTracker:
         for rs, ids in self._rings:
             for k, t in zip(rs.vertices, rs.vertex_edge_types()):
                 self.map.set_edge_type(ids[k], t)
+        self._unchanged = {(*source, tuple(sorted(ids.items()))): (rs, ids)
+                           for source, (rs, ids) in zip(sources, self._rings)}
         return self.map.flush()
 
     @property
