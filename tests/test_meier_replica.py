@@ -182,3 +182,25 @@ def _replica_rings_of(records):
     for r in records:
         rep.add(_over_the_air(r))
     return rep.rings()
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.floats(0.05, 0.9))
+def test_block_summaries_find_every_block_a_receiver_lacks_and_sending_those_again_makes_it_exact(seed, loss):
+    pm, records, rng = _history(seed, 65500)
+    complete, lossy = Replica(), Replica()
+    for r in records:
+        complete.add(_over_the_air(r))
+    for r in records:
+        if rng.random() >= loss:
+            lossy.add(_over_the_air(r))
+    for block in range(pm.blocks()):
+        assert complete.block_digest(block) == pm.block_digest(block)   # a receiver of every record agrees
+        differs = lossy.block_digest(block) != pm.block_digest(block)
+        assert differs == (any(lossy.held(v) != complete.held(v) for v in complete.block_ids(block)))
+        if differs:
+            for r in pm.block_records(block):
+                lossy.add(_over_the_air(r))
+            assert lossy.block_digest(block) == pm.block_digest(block)
+    got = [[(v.vertex_id, v.x_lat, v.y_lat, v.edge_type) for v in ring] for ring in lossy.rings()]
+    assert got == _sender_rings(pm)

@@ -184,6 +184,19 @@ class PolygonMap:
         tells a receiver that lost it what it would have held."""
         return self._mirror.held(v)
 
+    def blocks(self) -> int:
+        """How many blocks of ALIVE_BLOCK_IDS ids have ever held a vertex."""
+        return (self._next_id - 1) // ALIVE_BLOCK_IDS + 1 if self._next_id > 1 else 0
+
+    def block_digest(self, block: int) -> int:
+        """The digest (Replica.block_digest) a receiver of every record sent holds of a block."""
+        return self._mirror.block_digest(block)
+
+    def block_records(self, block: int) -> list[PolyRecord]:
+        """The newest record made of each vertex of a block: sent again as they are, they give
+        a receiver whose digest of the block differs what it would have held."""
+        return [self._mirror.held(v) for v in self._mirror.block_ids(block)]
+
     def alive_block(self, block: int) -> AliveRecord:
         """Which ids of a block are alive now."""
         bits = 0
@@ -193,7 +206,7 @@ class PolygonMap:
         return AliveRecord(self.sender_id, self._next_stamp(), block, bits)
 
     def _alive_blocks(self) -> list[AliveRecord]:
-        return [self.alive_block(block) for block in range((self._next_id - 1) // ALIVE_BLOCK_IDS + 1)]
+        return [self.alive_block(block) for block in range(max(1, self.blocks()))]
 
     # --- inside -----------------------------------------------------------------------------
     def _next_stamp(self) -> int:

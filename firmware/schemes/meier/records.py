@@ -6,7 +6,11 @@ air (meier.md 5.2). Dialect id 2.
 vertex no longer has (a place, an edge): 8 bytes instead of 12, and vertices go about as
 often as they come; `poly_alive` says which ids of a block of 64 are alive at a stamp
 (replica.AliveRecord); `poly_nack` names frames of a teammate this robot lost, which the
-teammate answers by sending the polygon records they carried again; `target` is the paper's
+teammate answers by sending the polygon records they carried again; `poly_sum` summarises
+what a receiver of every record holds of one block of the sender's vertex ids, and
+`poly_ask` asks for a block whose summary differs from the asker's copy (what a lost frame
+request cannot name: frames lost in a spell out of range longer than the link's window, a
+request lost, the last frame before the sender fell silent); `target` is the paper's
 target point transmission (TPT): where the sender is heading, or that it released its
 target, with a 7-bit sequence number so that an older one never overrides a newer.
 """
@@ -70,11 +74,27 @@ POLY_NACK = RecordType(
         "(meier.md 5.4's poly_nack, by frame).",
 )
 
+_BLOCK = Field("block", 6, unit="64 ids", doc="vertex ids 64 block .. 64 block + 63")
+
+POLY_SUM = RecordType(
+    6, "poly_sum", 6,
+    (SENDER, _BLOCK, Field("digest", 32, unit="crc32", doc="of the id and stamp of the newest record of each "
+                                                              "vertex of the block the sender made")),
+    doc="What a receiver of every polygon record of the sender holds of one block of its vertex ids; a "
+        "receiver whose copy differs asks for the block with poly_ask.",
+)
+
+POLY_ASK = RecordType(
+    7, "poly_ask", 3,
+    (SENDER, Field("of_id", 8, unit="id", doc="the teammate asked"), _BLOCK),
+    doc="The sender's copy of a block of the teammate's polygon map differs from the teammate's poly_sum: "
+        "the teammate sends the newest record of each vertex of the block again.",
+)
+
 POLY_ALIVE = RecordType(
     2, "poly_alive", 12,
     (
-        SENDER, _STAMP,
-        Field("block", 6, unit="64 ids", doc="ids 64 block .. 64 block + 63"),
+        SENDER, _STAMP, _BLOCK,
         Field("alive_lo", 32, unit="bits", doc="which ids 64 block + 0..31 are alive"),
         Field("alive_hi", 32, unit="bits", doc="which ids 64 block + 32..63 are alive"),
     ),
@@ -91,7 +111,7 @@ TARGET = RecordType(
     doc="Target point transmission (TPT): where the sender is heading (Meier et al. Algorithm 1 line 8).",
 )
 
-DIALECT = Dialect(DIALECT_ID, "meier", (POLY, POLY_ALIVE, TARGET, POLY_GONE, POLY_NACK))
+DIALECT = Dialect(DIALECT_ID, "meier", (POLY, POLY_ALIVE, TARGET, POLY_GONE, POLY_NACK, POLY_SUM, POLY_ASK))
 
 assert POLY.bits_used == 96 and POLY_GONE.bits_used == 63 and POLY_ALIVE.bits_used == 94
 assert (1 << 6) * ALIVE_BLOCK_IDS > MAX_VERTEX_ID

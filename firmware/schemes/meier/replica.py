@@ -24,7 +24,10 @@ stamps, so every record held is within 2^15 of the newest and the order is total
 """
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
+
+import numpy as np
 
 STAMP_BITS = 16
 STAMP_MOD = 1 << STAMP_BITS
@@ -97,6 +100,20 @@ class Replica:
     def held(self, vertex_id: int) -> PolyRecord | None:
         """The newest record of a vertex held (None if none)."""
         return self._vertices.get(vertex_id)
+
+    def block_ids(self, block: int) -> list[int]:
+        """The ids of a block of ALIVE_BLOCK_IDS this replica holds a record of."""
+        lo = block * ALIVE_BLOCK_IDS
+        return [v for v in range(lo, lo + ALIVE_BLOCK_IDS) if v in self._vertices]
+
+    def block_digest(self, block: int) -> int:
+        """A 32-bit summary of what is held of a block: the id and stamp of the newest record
+        of each vertex in it. Two replicas of one sender with the same digest hold the same
+        newest records there (but with odds of 2^-32), and then agree on those vertices
+        whatever poly_alive records either holds: a vertex's newest record was true at every
+        later stamp."""
+        pairs = np.array([(v, self._vertices[v].stamp) for v in self.block_ids(block)], "<u4").reshape(-1, 2)
+        return zlib.crc32(pairs.tobytes())
 
     def _alive(self, r: PolyRecord) -> bool:
         block = self._blocks.get(r.vertex_id // ALIVE_BLOCK_IDS)

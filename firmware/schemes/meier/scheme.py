@@ -52,6 +52,9 @@ REFRESH_RECORDS_PER_S = 0.5
 # The byte budget (meier_radio_share) saves up at most this long a quiet spell, and a burst
 # of traffic holds splits back for at most this long.
 BUDGET_HORIZON_S = 10.0
+# A block asked for is not asked for again before this many summaries went by: its records
+# are on their way (the sender summarises only once they have left).
+ASK_AGAIN_SUMS = 3
 # A frame that left the air is read by every receiver within this long (a few ticks).
 NEWS_READ_S = 0.2
 # Coarse cells around an own waypoint beyond the local window that a teammate's map must
@@ -78,6 +81,7 @@ class Meier(Scheme):
         self._said_us = 0
         self.counts = {"target_records_sent": 0, "poly_records_sent": 0, "poly_alive_records_sent": 0,
                        "edge_splits": 0, "records_dropped_by_link": 0, "nack_records_sent": 0,
+                       "sum_records_sent": 0, "ask_records_sent": 0,
                        "poly_records_sent_again": 0}
         self.records_by_kind = [0] * 5      # poly records by kind (polygons.REFRESH .. EMERGED)
         self._team_news = False             # the team layer changed since wake_up() last looked
@@ -104,6 +108,10 @@ class Meier(Scheme):
         self._outbox_us = self._news_until_us = 0     # the outbox task's clock; has_news until then
         self.replicas: dict[int, Replica] = {}
         self._asked: dict[int, set[int]] = {}      # teammate -> its lost frames this robot asked for
+        self._sum_us = -(1 << 62)                   # when the last poly_sum went (outbox clock)
+        self._sum_block = 0                         # the block the next poly_sum summarises
+        self._asked_block_us: dict[tuple[int, int], int] = {}   # (teammate, block) -> when asked for
+        self._asked_us: dict[int, int] = {}         # teammate -> when its lost frames were last asked for
         # Per teammate, kept while its replica's version is the same: its rings as arrays,
         # and their raster on the team layer's last grid.
         self._sender_arrays: dict[int, tuple[int, tuple | None]] = {}
@@ -162,14 +170,17 @@ class Meier(Scheme):
 
     def _task_outbox(self, now_us: int) -> None:
         """Feed the link from the outbox, the most urgent first, keeping at most
-        meier_backlog_max polygon records queued there."""
+        meier_backlog_max polygon records queued there; with nothing of the map left to
+        send, a block's summary now and then."""
         s = self.s
-        self._ask_for_lost_frames()
+        self._ask_for_lost_frames(now_us)
         waiting = self._poly_queued() + s.queued("poly_alive") + s.queued("poly_nack")
         self._outbox_us = now_us
         if waiting or self._outbox:
             self._news_until_us = now_us + int(NEWS_READ_S * 1e6)
         self._news_until_us = max(self._news_until_us, s.on_air_until_us() + int(NEWS_READ_S * 1e6))
+        if not waiting and not self._outbox:
+            self._send_summary(now_us)
         room = s.params.meier_backlog_max - waiting
         if room <= 0 or not self._outbox:
             return
@@ -186,7 +197,7 @@ class Meier(Scheme):
             if not ok:
                 self.counts["records_dropped_by_link"] += 1
 
-    def _ask_for_lost_frames(self) -> None:
+    def _ask_for_lost_frames(self, now_us: int) -> None:
         """Name each teammate's frames this robot lost (once each) in poly_nack records."""
         for rid in sorted(self.s.roster.members()):
             lost = self.s.missed_from(rid)
@@ -196,6 +207,42 @@ class Meier(Scheme):
             for values in nack_values(self.s.robot_id, rid, new):
                 self.s.send("poly_nack", values, PRIORITY_FORCED)
                 self.counts["nack_records_sent"] += 1
+                self._asked_us[rid] = now_us
+
+    def _send_summary(self, now_us: int) -> None:
+        """Every meier_sum_period_s, the digest of the next block of this robot's vertex ids
+        (round robin): sent only once every record made has left, so a receiver's copy that
+        differs from it lost something."""
+        blocks = self.tracker.map.blocks()
+        if not blocks or now_us - self._sum_us < self.s.params.meier_sum_period_s * 1e6:
+            return
+        self._sum_us = now_us
+        block = self._sum_block % blocks
+        self._sum_block = block + 1
+        self.s.send("poly_sum", {"sender_id": self.s.robot_id, "block": block,
+                                 "digest": self.tracker.map.block_digest(block)}, PRIORITY_REFRESH, key="poly_sum")
+        self.counts["sum_records_sent"] += 1
+
+    def _compare_summary(self, values: Mapping[str, int], now_us: int) -> None:
+        """A teammate's digest of a block against this robot's copy: asks for the block if
+        they differ, unless it asked the teammate for the block, or for lost frames, less
+        than ASK_AGAIN_SUMS summaries ago (what it asked for is on its way)."""
+        sender, block = values["sender_id"], values["block"]
+        held = self.replicas.get(sender, Replica()).block_digest(block)
+        wait_us = ASK_AGAIN_SUMS * self.s.params.meier_sum_period_s * 1e6
+        asked_us = max(self._asked_us.get(sender, -wait_us), self._asked_block_us.get((sender, block), -wait_us))
+        if held == values["digest"] or now_us - asked_us < wait_us:
+            return
+        self._asked_block_us[(sender, block)] = now_us
+        self.s.send("poly_ask", {"sender_id": self.s.robot_id, "of_id": sender, "block": block}, PRIORITY_FORCED)
+        self.counts["ask_records_sent"] += 1
+
+    def _send_block_again(self, block: int) -> None:
+        """A teammate's copy of a block differs: the newest record of each of its vertices
+        goes again, as it was."""
+        for r in self.tracker.map.block_records(block):
+            self._post(r, PRIORITY_FORCED)
+            self.counts["poly_records_sent_again"] += 1
 
     def _send_again(self, seqs: list[int]) -> None:
         """A teammate lost these frames of this robot: the polygon records they carried go
@@ -220,6 +267,13 @@ class Meier(Scheme):
         if rtype == "poly_nack":
             if values["of_id"] == self.s.robot_id:
                 self._send_again(nack_seqs(values))
+            return
+        if rtype == "poly_ask":
+            if values["of_id"] == self.s.robot_id:
+                self._send_block_again(values["block"])
+            return
+        if rtype == "poly_sum":
+            self._compare_summary(values, now_us)
             return
         record = alive_record(values) if rtype == "poly_alive" else poly_record(rtype, values)
         self.replicas.setdefault(record.sender_id, Replica()).add(record)
