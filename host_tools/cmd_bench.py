@@ -32,6 +32,11 @@ SCENARIOS: dict[str, MissionConfig] = {
     # A team sharing a real LoRa band: radio traffic in every tick's radio task.
     "cave-3robots-eu868": MissionConfig(map_spec="cave:1:60x60", robots=3, seed=0, max_sim_s=600.0,
                                         radio="eu868-g3", strategy="minpos"),
+    # Meier et al.'s polygon maps over the EU band: the tracker and the teammates' layer in
+    # every robot's polygons task, on a cave and on the cluttered Intel lab.
+    **{f"{name}-5robots-meier-eu868": MissionConfig(map_spec=spec, robots=5, seed=0, max_sim_s=300.0,
+                                                     radio="eu868-g3", strategy="meier")
+       for name, spec in (("cave60", "cave:1:60x60"), ("intel", str(SHARED_MAPS / "intel.yaml")))},
     # Scaling with the team (1, 5, 20 robots on one 100 m cave; 50 on a 200 m one) and with the
     # map (5 robots on 60, 100 and 200 m caves): MinPos on the ideal link, 400 s simulated.
     **{f"cave{size}-{n}robots": MissionConfig(map_spec=f"cave:1:{size}x{size}", robots=n, seed=0, max_sim_s=400.0,
