@@ -196,6 +196,7 @@ def test_block_summaries_find_every_block_a_receiver_lacks_and_sending_those_aga
             lossy.add(_over_the_air(r))
     for block in range(pm.blocks()):
         assert complete.block_digest(block) == pm.block_digest(block)   # a receiver of every record agrees
+        assert not complete.holds_since(block, pm.next_stamp)           # and holds nothing newer than that
         differs = lossy.block_digest(block) != pm.block_digest(block)
         assert differs == (any(lossy.held(v) != complete.held(v) for v in complete.block_ids(block)))
         if differs:

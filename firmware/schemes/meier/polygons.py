@@ -184,6 +184,11 @@ class PolygonMap:
         tells a receiver that lost it what it would have held."""
         return self._mirror.held(v)
 
+    @property
+    def next_stamp(self) -> int:
+        """The stamp the next record will carry: every record made so far is older."""
+        return self._stamp
+
     def blocks(self) -> int:
         """How many blocks of ALIVE_BLOCK_IDS ids have ever held a vertex."""
         return (self._next_id - 1) // ALIVE_BLOCK_IDS + 1 if self._next_id > 1 else 0

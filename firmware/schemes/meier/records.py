@@ -77,11 +77,15 @@ POLY_NACK = RecordType(
 _BLOCK = Field("block", 6, unit="64 ids", doc="vertex ids 64 block .. 64 block + 63")
 
 POLY_SUM = RecordType(
-    6, "poly_sum", 6,
-    (SENDER, _BLOCK, Field("digest", 32, unit="crc32", doc="of the id and stamp of the newest record of each "
-                                                              "vertex of the block the sender made")),
+    6, "poly_sum", 8,
+    (SENDER, _BLOCK,
+     Field("upto", STAMP_BITS, unit="records", doc="the sender's record counter when it summarised: the summary "
+                                                    "covers every record stamped before"),
+     Field("digest", 32, unit="crc32", doc="of the id and stamp of the newest record of each vertex of the block "
+                                           "the sender made")),
     doc="What a receiver of every polygon record of the sender holds of one block of its vertex ids; a "
-        "receiver whose copy differs asks for the block with poly_ask.",
+        "receiver whose copy differs, and holds nothing of the block stamped since, asks for the block with "
+        "poly_ask.",
 )
 
 POLY_ASK = RecordType(

@@ -106,6 +106,11 @@ class Replica:
         lo = block * ALIVE_BLOCK_IDS
         return [v for v in range(lo, lo + ALIVE_BLOCK_IDS) if v in self._vertices]
 
+    def holds_since(self, block: int, stamp: int) -> bool:
+        """Does it hold a record of the block made at `stamp` or later?"""
+        return any(self._vertices[v].stamp == stamp or newer(self._vertices[v].stamp, stamp)
+                   for v in self.block_ids(block))
+
     def block_digest(self, block: int) -> int:
         """A 32-bit summary of what is held of a block: the id and stamp of the newest record
         of each vertex in it. Two replicas of one sender with the same digest hold the same

@@ -219,19 +219,24 @@ class Meier(Scheme):
         self._sum_us = now_us
         block = self._sum_block % blocks
         self._sum_block = block + 1
-        self.s.send("poly_sum", {"sender_id": self.s.robot_id, "block": block,
-                                 "digest": self.tracker.map.block_digest(block)}, PRIORITY_REFRESH, key="poly_sum")
+        m = self.tracker.map
+        self.s.send("poly_sum", {"sender_id": self.s.robot_id, "block": block, "upto": m.next_stamp,
+                                 "digest": m.block_digest(block)}, PRIORITY_REFRESH, key="poly_sum")
         self.counts["sum_records_sent"] += 1
 
     def _compare_summary(self, values: Mapping[str, int], now_us: int) -> None:
         """A teammate's digest of a block against this robot's copy: asks for the block if
-        they differ, unless it asked the teammate for the block, or for lost frames, less
-        than ASK_AGAIN_SUMS summaries ago (what it asked for is on its way)."""
+        they differ, unless the copy holds a record made since the summary (records of one
+        frame arrive grouped by type, not in the order made: the next summary will tell), or
+        it asked the teammate for the block, or for lost frames, less than ASK_AGAIN_SUMS
+        summaries ago (what it asked for is on its way)."""
         sender, block = values["sender_id"], values["block"]
-        held = self.replicas.get(sender, Replica()).block_digest(block)
+        replica = self.replicas.get(sender, Replica())
+        if replica.block_digest(block) == values["digest"] or replica.holds_since(block, values["upto"]):
+            return
         wait_us = ASK_AGAIN_SUMS * self.s.params.meier_sum_period_s * 1e6
         asked_us = max(self._asked_us.get(sender, -wait_us), self._asked_block_us.get((sender, block), -wait_us))
-        if held == values["digest"] or now_us - asked_us < wait_us:
+        if now_us - asked_us < wait_us:
             return
         self._asked_block_us[(sender, block)] = now_us
         self.s.send("poly_ask", {"sender_id": self.s.robot_id, "of_id": sender, "block": block}, PRIORITY_FORCED)
