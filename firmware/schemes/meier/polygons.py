@@ -193,14 +193,15 @@ class PolygonMap:
         """How many blocks of ALIVE_BLOCK_IDS ids have ever held a vertex."""
         return (self._next_id - 1) // ALIVE_BLOCK_IDS + 1 if self._next_id > 1 else 0
 
-    def block_digest(self, block: int) -> int:
-        """The digest (Replica.block_digest) a receiver of every record sent holds of a block."""
-        return self._mirror.block_digest(block)
+    def block_digests(self, block: int) -> list[int]:
+        """The summary (Replica.block_digests) a receiver of every record sent holds of a block."""
+        return self._mirror.block_digests(block)
 
-    def block_records(self, block: int) -> list[PolyRecord]:
-        """The newest record made of each vertex of a block: sent again as they are, they give
-        a receiver whose digest of the block differs what it would have held."""
-        return [self._mirror.held(v) for v in self._mirror.block_ids(block)]
+    def block_records(self, block: int, parts: int) -> list[PolyRecord]:
+        """The newest record made of each vertex of these parts of a block: sent again as
+        they are, they give a receiver whose digests of those parts differ what it would
+        have held."""
+        return [self._mirror.held(v) for v in self._mirror.block_ids(block, parts)]
 
     def alive_block(self, block: int) -> AliveRecord:
         """Which ids of a block are alive now."""

@@ -20,7 +20,8 @@ from collections.abc import Mapping
 
 from firmware.comms.frame import SEQ_MODULUS
 from firmware.comms.schema import SENDER, Dialect, Field, RecordType, position_cm
-from firmware.schemes.meier.replica import ALIVE_BLOCK_IDS, MAX_VERTEX_ID, STAMP_BITS, AliveRecord, PolyRecord
+from firmware.schemes.meier.replica import (ALIVE_BLOCK_IDS, MAX_VERTEX_ID, STAMP_BITS, SUM_DIGEST_BITS, SUM_PART_IDS,
+                                            SUM_PARTS, AliveRecord, PolyRecord)
 
 DIALECT_ID = 2
 
@@ -77,22 +78,25 @@ POLY_NACK = RecordType(
 _BLOCK = Field("block", 6, unit="64 ids", doc="vertex ids 64 block .. 64 block + 63")
 
 POLY_SUM = RecordType(
-    6, "poly_sum", 8,
+    6, "poly_sum", 16,
     (SENDER, _BLOCK,
      Field("upto", STAMP_BITS, unit="records", doc="the sender's record counter when it summarised: the summary "
                                                     "covers every record stamped before"),
-     Field("digest", 32, unit="crc32", doc="of the id and stamp of the newest record of each vertex of the block "
-                                           "the sender made")),
-    doc="What a receiver of every polygon record of the sender holds of one block of its vertex ids; a "
-        "receiver whose copy differs, and holds nothing of the block stamped since, asks for the block with "
-        "poly_ask.",
+     *(Field(f"part{k}", SUM_DIGEST_BITS, unit="crc32 bits",
+             doc=f"of the id and stamp of the newest record of each vertex of ids 64 block + {SUM_PART_IDS * k} .. "
+                 f"{SUM_PART_IDS * (k + 1) - 1} the sender made (the low {SUM_DIGEST_BITS} bits)")
+       for k in range(SUM_PARTS))),
+    doc="What a receiver of every polygon record of the sender holds of one block of its vertex ids, part by part; "
+        "a receiver whose copy differs, and holds nothing of the block stamped since, asks for the parts that "
+        "differ with poly_ask.",
 )
 
 POLY_ASK = RecordType(
-    7, "poly_ask", 3,
-    (SENDER, Field("of_id", 8, unit="id", doc="the teammate asked"), _BLOCK),
-    doc="The sender's copy of a block of the teammate's polygon map differs from the teammate's poly_sum: "
-        "the teammate sends the newest record of each vertex of the block again.",
+    7, "poly_ask", 4,
+    (SENDER, Field("of_id", 8, unit="id", doc="the teammate asked"), _BLOCK,
+     Field("parts", SUM_PARTS, unit="bits", doc=f"bit k: ids 64 block + {SUM_PART_IDS} k .. + {SUM_PART_IDS - 1}")),
+    doc="The sender's copy of some parts of a block of the teammate's polygon map differs from the teammate's "
+        "poly_sum: the teammate sends the newest record of each vertex of those parts again.",
 )
 
 POLY_ALIVE = RecordType(

@@ -33,6 +33,12 @@ STAMP_BITS = 16
 STAMP_MOD = 1 << STAMP_BITS
 ALIVE_BLOCK_IDS = 64
 MAX_VERTEX_ID = 4095         # ids 1..4095; 0 names no vertex
+# A block's summary is one digest per part of SUM_PART_IDS ids, of SUM_DIGEST_BITS each: a
+# receiver asks only for the parts that differ (a few records, not 64). Two parts that
+# differ have the same digest once in 2^SUM_DIGEST_BITS.
+SUM_PART_IDS = 8
+SUM_PARTS = ALIVE_BLOCK_IDS // SUM_PART_IDS
+SUM_DIGEST_BITS = 12
 
 
 def newer(a: int, b: int) -> bool:
@@ -101,24 +107,27 @@ class Replica:
         """The newest record of a vertex held (None if none)."""
         return self._vertices.get(vertex_id)
 
-    def block_ids(self, block: int) -> list[int]:
-        """The ids of a block of ALIVE_BLOCK_IDS this replica holds a record of."""
+    def block_ids(self, block: int, parts: int = (1 << SUM_PARTS) - 1) -> list[int]:
+        """The ids of a block of ALIVE_BLOCK_IDS this replica holds a record of, in the parts
+        of SUM_PART_IDS whose bits are set in `parts`."""
         lo = block * ALIVE_BLOCK_IDS
-        return [v for v in range(lo, lo + ALIVE_BLOCK_IDS) if v in self._vertices]
+        return [v for v in range(lo, lo + ALIVE_BLOCK_IDS)
+                if parts >> ((v - lo) // SUM_PART_IDS) & 1 and v in self._vertices]
 
     def holds_since(self, block: int, stamp: int) -> bool:
         """Does it hold a record of the block made at `stamp` or later?"""
         return any(self._vertices[v].stamp == stamp or newer(self._vertices[v].stamp, stamp)
                    for v in self.block_ids(block))
 
-    def block_digest(self, block: int) -> int:
-        """A 32-bit summary of what is held of a block: the id and stamp of the newest record
-        of each vertex in it. Two replicas of one sender with the same digest hold the same
-        newest records there (but with odds of 2^-32), and then agree on those vertices
-        whatever poly_alive records either holds: a vertex's newest record was true at every
-        later stamp."""
-        pairs = np.array([(v, self._vertices[v].stamp) for v in self.block_ids(block)], "<u4").reshape(-1, 2)
-        return zlib.crc32(pairs.tobytes())
+    def block_digests(self, block: int) -> list[int]:
+        """A summary of what is held of a block, one SUM_DIGEST_BITS digest per part: of the
+        id and stamp of the newest record of each vertex in it. Two replicas of one sender
+        with the same digest of a part hold the same newest records there (but with odds of
+        2^-SUM_DIGEST_BITS), and then agree on those vertices whatever poly_alive records
+        either holds: a vertex's newest record was true at every later stamp."""
+        return [zlib.crc32(np.array([(v, self._vertices[v].stamp) for v in self.block_ids(block, 1 << part)],
+                                    "<u4").reshape(-1, 2).tobytes()) & ((1 << SUM_DIGEST_BITS) - 1)
+                for part in range(SUM_PARTS)]
 
     def _alive(self, r: PolyRecord) -> bool:
         block = self._blocks.get(r.vertex_id // ALIVE_BLOCK_IDS)

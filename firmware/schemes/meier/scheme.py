@@ -220,32 +220,35 @@ class Meier(Scheme):
         block = self._sum_block % blocks
         self._sum_block = block + 1
         m = self.tracker.map
-        self.s.send("poly_sum", {"sender_id": self.s.robot_id, "block": block, "upto": m.next_stamp,
-                                 "digest": m.block_digest(block)}, PRIORITY_REFRESH, key="poly_sum")
+        values = {"sender_id": self.s.robot_id, "block": block, "upto": m.next_stamp}
+        values.update({f"part{k}": d for k, d in enumerate(m.block_digests(block))})
+        self.s.send("poly_sum", values, PRIORITY_REFRESH, key="poly_sum")
         self.counts["sum_records_sent"] += 1
 
     def _compare_summary(self, values: Mapping[str, int], now_us: int) -> None:
-        """A teammate's digest of a block against this robot's copy: asks for the block if
-        they differ, unless the copy holds a record made since the summary (records of one
+        """A teammate's summary of a block against this robot's copy: asks for the parts
+        that differ, unless the copy holds a record made since the summary (records of one
         frame arrive grouped by type, not in the order made: the next summary will tell), or
         it asked the teammate for the block, or for lost frames, less than ASK_AGAIN_SUMS
         summaries ago (what it asked for is on its way)."""
         sender, block = values["sender_id"], values["block"]
         replica = self.replicas.get(sender, Replica())
-        if replica.block_digest(block) == values["digest"] or replica.holds_since(block, values["upto"]):
+        parts = sum(1 << k for k, d in enumerate(replica.block_digests(block)) if d != values[f"part{k}"])
+        if not parts or replica.holds_since(block, values["upto"]):
             return
         wait_us = ASK_AGAIN_SUMS * self.s.params.meier_sum_period_s * 1e6
         asked_us = max(self._asked_us.get(sender, -wait_us), self._asked_block_us.get((sender, block), -wait_us))
         if now_us - asked_us < wait_us:
             return
         self._asked_block_us[(sender, block)] = now_us
-        self.s.send("poly_ask", {"sender_id": self.s.robot_id, "of_id": sender, "block": block}, PRIORITY_FORCED)
+        self.s.send("poly_ask", {"sender_id": self.s.robot_id, "of_id": sender, "block": block, "parts": parts},
+                    PRIORITY_FORCED)
         self.counts["ask_records_sent"] += 1
 
-    def _send_block_again(self, block: int) -> None:
-        """A teammate's copy of a block differs: the newest record of each of its vertices
-        goes again, as it was."""
-        for r in self.tracker.map.block_records(block):
+    def _send_block_again(self, block: int, parts: int) -> None:
+        """A teammate's copy of some parts of a block differs: the newest record of each of
+        their vertices goes again, as it was."""
+        for r in self.tracker.map.block_records(block, parts):
             self._post(r, PRIORITY_FORCED)
             self.counts["poly_records_sent_again"] += 1
 
@@ -275,7 +278,7 @@ class Meier(Scheme):
             return
         if rtype == "poly_ask":
             if values["of_id"] == self.s.robot_id:
-                self._send_block_again(values["block"])
+                self._send_block_again(values["block"], values["parts"])
             return
         if rtype == "poly_sum":
             self._compare_summary(values, now_us)
