@@ -34,23 +34,26 @@ def test_splits_take_only_what_the_forced_updates_leave_of_the_radio_budget():
     assert j["polygon_maps"]["replica_mismatch_end_max"] == 0.0
 
 
+def _team_out_of_range(range_m: float) -> dict:
+    """Three robots on a small cave over eu868-g3 with a hard radio range: the mission ends
+    complete with frames lost out of range and every copy exact; its explorer stats."""
+    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=3, seed=2, strategy="meier", max_sim_s=900,
+                                  radio="eu868-g3", range_m=range_m))
+    j = r.to_json()
+    assert r.termination == "complete" and j["radio_stats"]["receptions"]["out_of_range"] > 0
+    assert j["polygon_maps"]["replica_mismatch_end_max"] == 0.0
+    return j["explorer_stats"]
+
+
 def test_frames_lost_out_of_range_are_asked_for_and_sent_again_so_every_copy_is_exact():
     """With a 6 m range the robots lose 16 frames of each other (without the asking, two
     copies end 13 % and 9 % wrong by area)."""
-    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=3, seed=2, strategy="meier", max_sim_s=900,
-                                  radio="eu868-g3", range_m=6.0))
-    j = r.to_json()
-    assert r.termination == "complete" and j["radio_stats"]["receptions"]["out_of_range"] > 0
-    assert sum(j["explorer_stats"]["nack_records_sent"]) > 0 and sum(j["explorer_stats"]["poly_records_sent_again"]) > 0
-    assert j["polygon_maps"]["replica_mismatch_end_max"] == 0.0
+    stats = _team_out_of_range(6.0)
+    assert sum(stats["nack_records_sent"]) > 0 and sum(stats["poly_records_sent_again"]) > 0
 
 
 def test_what_the_lost_frame_requests_miss_the_block_summaries_find():
     """With a 4 m range the robots lose 85 frames of each other; asking for lost frames by
     number alone leaves one copy 0.6 % wrong by area (meier_sum_period_s = 3600 s)."""
-    r = run_mission(MissionConfig(map_spec="cave:5:20x20", robots=3, seed=2, strategy="meier", max_sim_s=900,
-                                  radio="eu868-g3", range_m=4.0))
-    j = r.to_json()
-    assert r.termination == "complete" and j["radio_stats"]["receptions"]["out_of_range"] > 0
-    assert sum(j["explorer_stats"]["ask_records_sent"]) > 0 and min(j["explorer_stats"]["sum_records_sent"]) > 0
-    assert j["polygon_maps"]["replica_mismatch_end_max"] == 0.0
+    stats = _team_out_of_range(4.0)
+    assert sum(stats["ask_records_sent"]) > 0 and min(stats["sum_records_sent"]) > 0
