@@ -215,7 +215,7 @@ class ExplorationParams:
     meier_backlog_max: int = _p(8, 'records', 1, 64, 'no splits while this many polygon records wait on the link')
     # Lost frames are asked for by number (poly_nack) within the link's 64-frame window;
     # beyond it (a long spell out of range, a request lost, a sender that fell silent) a
-    # receiver finds what it lacks from the sender's block summaries (poly_sum, 6 bytes).
+    # receiver finds what it lacks from the sender's block summaries (poly_sum, 16 bytes).
     meier_sum_period_s: float = _p(5.0, 's', 0.1, 3600.0, 'a summary of one block of the own vertex ids goes this '
                                    'often while nothing else of the polygons waits')
     meier_max_range_m: float = _p(10.0, 'm', 0.1, 1000.0, "the sensor's range in eq. (1)", lo_open=True)

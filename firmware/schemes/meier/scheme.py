@@ -9,7 +9,12 @@ link or while all the robot has sent is over meier_radio_share of what its link 
 and the vertices it changed go out as `poly` records, the forced ones first. A
 teammate that finds frames of this robot missing (gaps in the link's sequence numbers) names
 them in `poly_nack` records, and this robot sends the polygon records they carried again;
-between changes a slow round robin re-sends live vertices and which ids are alive.
+what that cannot name (frames lost beyond the link's window, a request lost, the last frame
+before a silence) the block summaries find: while nothing of its polygons waits, the robot
+sends a `poly_sum` of one block of its vertex ids every meier_sum_period_s, and a teammate
+whose copy differs names the parts in a `poly_ask`, which this robot answers with their
+newest records; between changes a slow round robin re-sends live vertices and which ids
+are alive.
 Teammates' records build their polygon maps (replica.Replica, a pure function of the records
 held), rasterised into a team layer that fills the cells this robot has not observed itself
 (LocalMap.team): it plans on the combined map.

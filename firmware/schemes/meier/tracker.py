@@ -9,8 +9,8 @@ Each update traces the new boundary (contours.trace_contours), then:
    vertex gets the corner farthest from it, one with none starts from its lowest corner
    and the farthest from that (meier.md A7); a free region too small to hold the robot's
    body gets no ring (no robot can go there, so no teammate needs it; in a cluttered office
-   such specks are most of the rings and of the churn); a corner where the crack type changes is a
-   vertex, unless a vertex a few wall cracks back can hold that junction
+   such specks are most of the rings and of the churn); a corner where the crack type
+   changes is a vertex, unless a vertex a few wall cracks back can hold that junction
    (contours.hold_junctions), and a vertex's edge is a wall only if every crack along it
    is one;
 3. refine: up to max_splits edge splits, the worst edge of all rings first (simplify).
@@ -89,7 +89,8 @@ class PolygonTracker:
 
     def _vertices_on(self, contours: list[Contour]) -> tuple[list[np.ndarray], dict[int, dict[int, int]]]:
         """Per contour, which of its corners are usable (the boundary passes them once: not a
-        pinch, even with a region too small to trace), and the live vertices on usable corners as {contour: {position: vertex}}."""
+        pinch, even with a region too small to trace), and the live vertices on usable
+        corners as {contour: {position: vertex}}."""
         if not contours:
             return [], {}
         lengths = np.array([len(c.corners) for c in contours])
