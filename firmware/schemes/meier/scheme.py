@@ -218,13 +218,13 @@ class Meier(Scheme):
         """Every meier_sum_period_s, the digest of the next block of this robot's vertex ids
         (round robin): sent only once every record made has left, so a receiver's copy that
         differs from it lost something."""
-        blocks = self.tracker.map.blocks()
+        m = self.tracker.map
+        blocks = m.blocks()
         if not blocks or now_us - self._sum_us < self.s.params.meier_sum_period_s * 1e6:
             return
         self._sum_us = now_us
         block = self._sum_block % blocks
         self._sum_block = block + 1
-        m = self.tracker.map
         values = {"sender_id": self.s.robot_id, "block": block, "upto": m.next_stamp}
         values.update({f"part{k}": d for k, d in enumerate(m.block_digests(block))})
         self.s.send("poly_sum", values, PRIORITY_REFRESH, key="poly_sum")

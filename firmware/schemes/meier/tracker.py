@@ -94,10 +94,10 @@ class PolygonTracker:
         if not contours:
             return [], {}
         lengths = np.array([len(c.corners) for c in contours])
+        starts = np.cumsum(lengths) - lengths
         keys = _corner_keys(np.concatenate([c.corners for c in contours]))
         unique, first, inverse, passes = np.unique(keys, return_index=True, return_inverse=True, return_counts=True)
-        once = passes[inverse] == 1
-        usable = np.split(once, np.cumsum(lengths)[:-1])
+        usable = np.split(passes[inverse] == 1, starts[1:])
         on: dict[int, dict[int, int]] = {}
         live = self.map.live_vertices()
         if live:
@@ -105,7 +105,7 @@ class PolygonTracker:
             at = np.minimum(np.searchsorted(unique, wanted), len(unique) - 1)
             hit = (unique[at] == wanted) & (passes[at] == 1)
             label_of = np.repeat(np.arange(len(contours)), lengths)
-            position_of = np.arange(len(keys)) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+            position_of = np.arange(len(keys)) - starts[label_of]
             corner = first[at[hit]]
             for v, label, k in zip(np.asarray(live)[hit].tolist(), label_of[corner].tolist(),
                                    position_of[corner].tolist()):
