@@ -87,6 +87,17 @@ class ObservableUnknownMemo:
         self._state = state.copy()
 
 
+# Waypoints this near the window's edge are re-scored on everything mapped, not on the window.
+RESCORE_MARGIN_CELLS = 2
+
+
+def _rescored_in_window(local_map, w: Waypoint) -> bool:
+    """Is this waypoint re-scored on the window (WaypointSet.update)?"""
+    i, j = local_map.cell_of(w.x_m, w.y_m)
+    n, margin = local_map.n, RESCORE_MARGIN_CELLS
+    return margin <= i < n - margin and margin <= j < n - margin
+
+
 # A last look (WaypointSet.look_again) tries every third cell.
 LOOK_AGAIN_SPACING_CELLS = 3
 
@@ -197,18 +208,37 @@ class WaypointSet:
         counts = self._observable.counts(local_map, state, cand[:, 0].astype(np.int64), cand[:, 1].astype(np.int64))
         return cand, counts * p.entropy_per_cell_bit
 
+    def rescore_beyond_window(self, local_map) -> int:
+        """Re-score the members outside the local map on everything mapped (the window and
+        the paged-out tiles, where a dense teammate's scans land too), as update() re-scores
+        those inside it, and drop those under e_min; how many it dropped."""
+        p = self.p
+        beyond = [w for w in self.items if not _rescored_in_window(local_map, w)]
+        if not beyond:
+            return 0
+        mapped, row0, col0 = local_map.whole_state(felt=False)
+        rows = np.array([math.floor(w.y_m / p.resolution_m) for w in beyond], np.int64)
+        cols = np.array([math.floor(w.x_m / p.resolution_m) for w in beyond], np.int64)
+        # What lies beyond everything mapped is unknown, as far as a ray from a waypoint reaches.
+        reach = int(math.ceil(p.d_cam_m / p.resolution_m)) + 1
+        r_lo, c_lo = min(row0, int(rows.min()) - reach), min(col0, int(cols.min()) - reach)
+        r_hi = max(row0 + mapped.shape[0], int(rows.max()) + reach + 1)
+        c_hi = max(col0 + mapped.shape[1], int(cols.max()) + reach + 1)
+        state = np.full((r_hi - r_lo, c_hi - c_lo), kernels.UNKNOWN, np.uint8)
+        state[row0 - r_lo:row0 - r_lo + mapped.shape[0], col0 - c_lo:col0 - c_lo + mapped.shape[1]] = mapped
+        counts = kernels.observable_unknown(state, rows - r_lo, cols - c_lo, p.info_rays, p.d_cam_m / p.resolution_m)
+        for w, c in zip(beyond, counts):
+            w.e_bit = float(c) * p.entropy_per_cell_bit
+        before = len(self.items)
+        self.items = [w for w in self.items if w.e_bit >= p.min_cluster_entropy_bit]
+        return before - len(self.items)
+
     def update(self, local_map, state: np.ndarray, reachable: np.ndarray) -> None:
         """One planning cycle: re-score members inside the map, find new ones, merge."""
         p = self.p
         res = p.resolution_m
-        n = state.shape[0]
-        margin = 2
         # Re-score remembered waypoints that are back inside the local map.
-        inside = []
-        for w in self.items:
-            i, j = local_map.cell_of(w.x_m, w.y_m)
-            if margin <= i < n - margin and margin <= j < n - margin:
-                inside.append((w, i, j))
+        inside = [(w, *local_map.cell_of(w.x_m, w.y_m)) for w in self.items if _rescored_in_window(local_map, w)]
         if inside:
             ci = np.array([t[1] for t in inside], np.int64)
             cj = np.array([t[2] for t in inside], np.int64)

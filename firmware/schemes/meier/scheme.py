@@ -92,7 +92,9 @@ class Meier(Scheme):
         self._team_news = False             # the team layer changed since wake_up() last looked
         self._finished = False              # the robot stopped: no more splits or refresh
         self._woken_us = 0
+        self._rescored_us = -(1 << 62)      # when the waypoints beyond the window were last re-scored
         if self.variant != "polygons":
+            self.counts["waypoints_explored_beyond_window"] = 0
             return
         k = LATTICE_M / p.resolution_m
         if abs(k - round(k)) > 1e-9:
@@ -414,8 +416,17 @@ class Meier(Scheme):
     # --- coordination -----------------------------------------------------------------
     def filter_waypoints(self, view: PlanningView) -> None:
         """Own waypoints beyond the local window whose surroundings a teammate's map shows
-        known are explored (inside the window the combined map re-scores them)."""
-        if self.variant != "polygons" or self._team_layer() is None:
+        known are explored (inside the window the combined map re-scores them). Without
+        polygons, what the robot knows beyond its window (with dense maps, its teammates'
+        scans) re-scores them every known_map_refresh_s: Algorithm 1 has no other way to
+        learn that a teammate explored a place, and the team would drive to all of them."""
+        if self.variant != "polygons":
+            if view.now_us - self._rescored_us >= self.s.params.known_map_refresh_s * 1e6:
+                self._rescored_us = view.now_us
+                self.counts["waypoints_explored_beyond_window"] += self.s.waypoints.rescore_beyond_window(
+                    self.s.local_map)
+            return
+        if self._team_layer() is None:
             return
         lm, k, r = self.s.local_map, self._k, COVERED_RADIUS_CELLS
         res = lm.p.resolution_m
