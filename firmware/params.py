@@ -224,7 +224,7 @@ class ExplorationParams:
     meier_target_move_m: float = _p(1.0, 'm', 0.0, 100.0, 'a new target record when the target moves this far')
     meier_target_keepalive_s: float = _p(30.0, 's', 1.0, 3600.0, 'the target record is repeated this often')
     meier_team_extent_m: float = _p(100.0, 'm', 10.0, 1000.0, "teammates' polygons are drawn this far around the robot")
-    meier_min_hole_m2: float = _p(0.5, 'm^2', 0.0, 100.0, "holes in a teammate's polygons smaller than this are not cut out")
+    meier_min_hole_m2: float = _p(0.5, 'm^2', 0.0, 100.0, 'holes in the own map smaller than this get no ring (not sent)')
     meier_target_expiry_s: float = _p(90.0, 's', 1.0, 36000.0, "a teammate's target is forgotten this long after its record")
     # Pereira et al. (firmware.schemes.pereira; ../shared/schemes/pereira.md sections 2, 4 and
     # 5). The gate detector's and the fold's geometry stay in firmware/schemes/pereira/params.py:

@@ -67,14 +67,11 @@ def test_rings_far_outside_the_grid_cost_nothing_and_draw_nothing():
     assert (got == U).all()
 
 
-def test_a_small_hole_the_sender_did_not_see_into_is_drawn_free_a_large_one_unknown():
+def test_a_hole_is_cut_out_of_the_free_area_unknown_inside_and_walled_if_its_edges_are():
     room = np.array([[0, 0], [20, 0], [20, 20], [0, 20]], np.int64)            # counter-clockwise
     small = np.array([[5, 5], [5, 7], [7, 7], [7, 5]], np.int64)               # clockwise: 4 cells
-    large = np.array([[10, 10], [10, 16], [16, 16], [16, 10]], np.int64)       # clockwise: 36 cells
-    frontier = [np.zeros(4, bool)] * 3
-    got = rasterise_rings([room, small, large], frontier, (20, 20), 0, 0, min_hole_cells=10.0)
-    assert (got[5:7, 5:7] == F).all() and (got[10:16, 10:16] == U).all()
-    walled = rasterise_rings([room, small, large], [np.zeros(4, bool), np.ones(4, bool), np.zeros(4, bool)],
-                             (20, 20), 0, 0, min_hole_cells=10.0)
-    assert (walled[5:7, 5:7] == O).all()                                      # its walls are drawn
-    assert (rasterise_rings([room, small], frontier[:2], (20, 20), 0, 0)[5:7, 5:7] == U).all()
+    frontier = [np.zeros(4, bool)] * 2
+    got = rasterise_rings([room, small], frontier, (20, 20), 0, 0)
+    assert (got[5:7, 5:7] == U).all() and got[4, 4] == F and got[7, 7] == F
+    walled = rasterise_rings([room, small], [np.zeros(4, bool), np.ones(4, bool)], (20, 20), 0, 0)
+    assert (walled[5:7, 5:7] == O).all()

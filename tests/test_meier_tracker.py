@@ -60,11 +60,11 @@ def _rings_on_contours(tracker, state):
 
 @settings(max_examples=150, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.sampled_from([1, 3, 1000]), st.sampled_from([1, 3]), st.sampled_from([0, 4]),
-       st.sampled_from([0.0, 4.9]))
+       st.sampled_from([0.0, 4.9]), st.sampled_from([0.0, 12.5]))
 def test_the_rings_follow_the_boundary_and_a_receiver_of_every_record_holds_them(seed, splits, type_min_run, hold,
-                                                                                  min_region):
+                                                                                  min_region, min_hole):
     tracker = PolygonTracker(sender_id=1, eps_cells=1.0, type_min_run=type_min_run, junction_hold=hold,
-                             min_region_cells=min_region)
+                             min_region_cells=min_region, min_hole_cells=min_hole)
     records, placed = [], {}
     for state in _growing_maps(seed, 6):
         sent = tracker.update(state, splits)
@@ -139,20 +139,21 @@ def test_a_frontier_advancing_along_a_corridor_leaves_a_vertex_on_its_walls_only
     assert live[5] <= 2 * 30 // 5 + 4
 
 
-def test_free_regions_too_small_for_the_body_get_no_ring_and_holes_keep_theirs():
+def test_free_regions_too_small_for_the_body_and_holes_too_small_to_matter_get_no_ring():
     state = np.full((20, 20), kernels.UNKNOWN, np.uint8)
     state[2:12, 2:12] = kernels.FREE                 # a room of 100 cells
-    state[6:8, 6:8] = kernels.OCCUPIED               # a 4-cell obstacle inside it: a hole
+    state[8:10, 4:6] = kernels.OCCUPIED              # a 4-cell obstacle inside it: a hole
+    state[3:6, 8:11] = kernels.OCCUPIED              # a 9-cell one
     state[15, 15] = kernels.FREE                     # a free speck of one cell, walled in
     state[14, 14:17] = state[16, 14:17] = state[15, 14] = state[15, 16] = kernels.OCCUPIED
     state[15:17, 2:4] = kernels.FREE                 # a free patch of 4 cells
-    kept = PolygonTracker(sender_id=1, eps_cells=1.0, min_region_cells=4.9)
+    kept = PolygonTracker(sender_id=1, eps_cells=1.0, min_region_cells=4.9, min_hole_cells=6.0)
     kept.update(state, 10_000)
     every = PolygonTracker(sender_id=1, eps_cells=1.0)
     every.update(state, 10_000)
-    assert len(every.map.rings()) == 4
+    assert len(every.map.rings()) == 5
     rings = kept.map.rings()
-    assert len(rings) == 2                          # the room and its hole
+    assert len(rings) == 2                          # the room and its larger hole
     corners = {tuple(kept.map.vertex(v)[:2]) for ring in rings for v in ring}
     assert all(2 <= x <= 12 and 2 <= y <= 12 for x, y in corners)
     # The speck grows into a region the body fits in: it gets its ring.
@@ -161,3 +162,7 @@ def test_free_regions_too_small_for_the_body_get_no_ring_and_holes_keep_theirs()
     state[14:19, 14] = state[14:19, 18] = kernels.OCCUPIED
     kept.update(state, 10_000)
     assert len(kept.map.rings()) == 3
+    # The small obstacle is seen to be larger: its hole gets its ring.
+    state[8:10, 4:7] = kernels.OCCUPIED
+    kept.update(state, 10_000)
+    assert len(kept.map.rings()) == 4

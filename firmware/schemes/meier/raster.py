@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from firmware import kernels
-from firmware.schemes.meier.contours import rotated, signed_area
+from firmware.schemes.meier.contours import rotated
 
 # Coarse cells the own raster grows by at a time, so it is not reallocated every update.
 GROW_CELLS = 32
@@ -52,13 +52,17 @@ class CoarseRaster:
         self.cells = np.zeros((0, 0), np.uint8)
         self.row0 = self.col0 = 0
 
-    def merge(self, fine: np.ndarray, fine_row0: int, fine_col0: int) -> None:
+    def merge(self, fine: np.ndarray, fine_row0: int, fine_col0: int) -> bool:
+        """Pool the fine grid (anchored at global fine cell (fine_row0, fine_col0)) in; did
+        any coarse cell change?"""
         coarse, r0, c0 = pool(fine, fine_row0, fine_col0, self.k)
         self._cover(r0, c0, r0 + coarse.shape[0], c0 + coarse.shape[1])
         view = self.cells[r0 - self.row0:r0 - self.row0 + coarse.shape[0],
                           c0 - self.col0:c0 - self.col0 + coarse.shape[1]]
         known = coarse != kernels.UNKNOWN
+        changed = bool((view[known] != coarse[known]).any())
         view[known] = coarse[known]
+        return changed
 
     def _cover(self, r_lo: int, c_lo: int, r_hi: int, c_hi: int) -> None:
         """Grow the raster (by whole GROW_CELLS steps) to hold rows [r_lo, r_hi), cols [c_lo, c_hi)."""
@@ -79,12 +83,10 @@ class CoarseRaster:
 
 
 def rasterise_rings(rings: list[np.ndarray], wall: list[np.ndarray], shape: tuple[int, int],
-                    row0: int, col0: int, min_hole_cells: float = 0.0) -> np.ndarray:
+                    row0: int, col0: int) -> np.ndarray:
     """The coarse states of the grid of `shape` anchored at global coarse cell (row0, col0)
     that one sender's rings say: each ring an (n, 2) int array of lattice (x, y) corners in
-    order, wall[i][k] true if the edge from corner k to k + 1 is a wall. Holes (clockwise
-    rings) of less than min_hole_cells are not cut out of the free area around them (their
-    walls are drawn): a pocket the sender did not see into, too small to send anyone to."""
+    order, wall[i][k] true if the edge from corner k to k + 1 is a wall."""
     rows, cols = shape
     out = np.full(shape, kernels.UNKNOWN, np.uint8)
     if not rings:
@@ -92,10 +94,9 @@ def rasterise_rings(rings: list[np.ndarray], wall: list[np.ndarray], shape: tupl
     a = np.concatenate(rings).astype(np.float64)
     b = np.concatenate([rotated(r, 1) for r in rings]).astype(np.float64)
     is_wall = np.concatenate(wall).astype(bool)
-    small_hole = np.concatenate([np.full(len(r), 0.0 < -signed_area(r) < min_hole_cells) for r in rings])
     # Even-odd fill: each non-horizontal edge flips the cells of the rows it crosses (within
     # the grid) whose centres lie right of the crossing.
-    steep = (a[:, 1] != b[:, 1]) & ~small_hole
+    steep = a[:, 1] != b[:, 1]
     ea, eb = a[steep], b[steep]
     y_lo = np.maximum(np.minimum(ea[:, 1], eb[:, 1]), row0).astype(np.int64)
     y_hi = np.minimum(np.maximum(ea[:, 1], eb[:, 1]), row0 + rows).astype(np.int64)

@@ -104,7 +104,8 @@ class Meier(Scheme):
         self.own = CoarseRaster(self._k)
         self.tracker = PolygonTracker(services.robot_id, p.meier_eps_m / LATTICE_M, p.meier_type_min_run,
                                       round(p.meier_junction_hold_m / LATTICE_M),
-                                      min_region_cells=math.pi * p.robot_radius_m ** 2 / LATTICE_M ** 2)
+                                      min_region_cells=math.pi * p.robot_radius_m ** 2 / LATTICE_M ** 2,
+                                      min_hole_cells=p.meier_min_hole_m2 / LATTICE_M ** 2)
         self._tokens = 0.0
         radio_Bps = services.radio_Bps
         self._budget_Bps = None if radio_Bps is None else p.meier_radio_share * radio_Bps
@@ -373,8 +374,7 @@ class Meier(Scheme):
         held = self._sender_rasters.get(sender)
         if held is None or held[0] != key:
             _, lattice, wall = self._corners_of(sender)
-            min_hole = self.s.params.meier_min_hole_m2 / LATTICE_M ** 2
-            held = self._sender_rasters[sender] = (key, rasterise_rings(lattice, wall, shape, r_lo, c_lo, min_hole))
+            held = self._sender_rasters[sender] = (key, rasterise_rings(lattice, wall, shape, r_lo, c_lo))
         return held[1]
 
     def _team_cells(self, row0: int, col0: int, rows: int, cols: int) -> np.ndarray | None:

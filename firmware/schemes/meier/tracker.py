@@ -8,8 +8,10 @@ Each update traces the new boundary (contours.trace_contours), then:
    boundary broken in two, or two joined, is the same relink); a contour left with one
    vertex gets the corner farthest from it, one with none starts from its lowest corner
    and the farthest from that (meier.md A7); a free region too small to hold the robot's
-   body gets no ring (no robot can go there, so no teammate needs it; in a cluttered office
-   such specks are most of the rings and of the churn); a corner where the crack type
+   body gets no ring (no robot can go there, so no teammate needs it), nor does a hole too
+   small to send anyone to (a table, a pillar, a pocket not seen into: a receiver draws it
+   free, and its own LiDAR finds the obstacle); in a cluttered office such specks and
+   holes are most of the rings and of the churn; a corner where the crack type
    changes is a vertex, unless a vertex a few wall cracks back can hold that junction
    (contours.hold_junctions), and a vertex's edge is a wall only if every crack along it
    is one;
@@ -28,10 +30,11 @@ from firmware.schemes.meier.simplify import RingSimplifier
 
 class PolygonTracker:
     def __init__(self, sender_id: int, eps_cells: float, type_min_run: int = 1, junction_hold: int = 0,
-                 min_region_cells: float = 0.0) -> None:
+                 min_region_cells: float = 0.0, min_hole_cells: float = 0.0) -> None:
         self.map = PolygonMap(sender_id)
         self.eps = eps_cells
         self.min_region_cells = min_region_cells    # free regions of less area are not traced
+        self.min_hole_cells = min_hole_cells        # nor are holes of less area
         self.type_min_run = type_min_run    # cracks: shorter runs of one type take the type around
         self.junction_hold = junction_hold  # cracks: a junction moves back onto a vertex this near
         # Per ring: its simplifier and the vertex id at each of its corners that is one.
@@ -83,9 +86,10 @@ class PolygonTracker:
         return max((rs.worst_error for rs, _ in self._rings), default=0.0)
 
     def _too_small(self, corners: np.ndarray) -> bool:
-        """Is this the outer boundary of a free region of less than min_region_cells? (Holes
-        are kept at any size: what they enclose may be an obstacle.)"""
-        return 0.0 < signed_area(corners) < self.min_region_cells
+        """Is this the outer boundary of a free region of less than min_region_cells, or a
+        hole (clockwise) of less than min_hole_cells?"""
+        area = signed_area(corners)
+        return 0.0 < area < self.min_region_cells or 0.0 < -area < self.min_hole_cells
 
     def _vertices_on(self, contours: list[Contour]) -> tuple[list[np.ndarray], dict[int, dict[int, int]]]:
         """Per contour, which of its corners are usable (the boundary passes them once: not a
