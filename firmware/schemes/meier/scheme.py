@@ -60,6 +60,9 @@ BUDGET_HORIZON_S = 10.0
 # A block asked for is not asked for again before this many summaries went by: its records
 # are on their way (the sender summarises only once they have left).
 ASK_AGAIN_SUMS = 3
+# Link keys of records sent again (repairs), told apart from first sends ("poly",
+# "poly_alive") so that a repair lost in turn is not sent again on request.
+POLY_AGAIN, ALIVE_AGAIN = "poly_again", "poly_alive_again"
 # A frame that left the air is read by every receiver within this long (a few ticks).
 NEWS_READ_S = 0.2
 # Coarse cells around an own waypoint beyond the local window that a teammate's map must
@@ -111,7 +114,8 @@ class Meier(Scheme):
         self._budget_Bps = None if radio_Bps is None else p.meier_radio_share * radio_Bps
         self._credit_B = 0.0        # bytes of the budget not yet used (negative: overdrawn)
         self._bytes_seen = 0        # services.bytes_sent() when the budget was last brought up to date
-        self._outbox: dict[int, tuple[int, PolyRecord | AliveRecord]] = {}   # vertex id (or -block-1) -> (priority, record)
+        # vertex id (or -block-1) -> (priority, record, whether it goes again: a repair)
+        self._outbox: dict[int, tuple[int, PolyRecord | AliveRecord, bool]] = {}
         self._refresh_credit = 0.0
         self._outbox_us = self._news_until_us = 0     # the outbox task's clock; has_news until then
         self.replicas: dict[int, Replica] = {}
@@ -170,11 +174,15 @@ class Meier(Scheme):
         """Vertex records waiting on the link."""
         return self.s.queued("poly") + self.s.queued("poly_gone")
 
-    def _post(self, r: PolyRecord | AliveRecord, priority: int) -> None:
-        """Into the outbox; a newer state of the same vertex (or block) replaces one waiting."""
+    def _post(self, r: PolyRecord | AliveRecord, priority: int, again: bool = False) -> None:
+        """Into the outbox; a newer state of the same vertex (or block) replaces one waiting.
+        A record sent `again` repairs a teammate's copy; it stays a repair only if what it
+        replaces was one too."""
         key = r.vertex_id if isinstance(r, PolyRecord) else -1 - r.block
         held = self._outbox.pop(key, None)
-        self._outbox[key] = (max(priority, held[0]) if held else priority, r)
+        if held is not None:
+            priority, again = max(priority, held[0]), again and held[2]
+        self._outbox[key] = (priority, r, again)
 
     def _task_outbox(self, now_us: int) -> None:
         """Feed the link from the outbox, the most urgent first, keeping at most
@@ -194,13 +202,14 @@ class Meier(Scheme):
             return
         order = sorted(self._outbox, key=lambda key: -self._outbox[key][0])   # stable: oldest first within a priority
         for key in order[:room]:
-            priority, r = self._outbox.pop(key)
+            priority, r, again = self._outbox.pop(key)
             if isinstance(r, PolyRecord):
-                ok = s.send(*poly_values(r), priority, key=("poly", r.vertex_id))
+                ok = s.send(*poly_values(r), priority, key=(POLY_AGAIN if again else "poly", r.vertex_id))
                 self.counts["poly_records_sent"] += 1
                 self.records_by_kind[r.kind] += 1
             else:
-                ok = s.send("poly_alive", alive_values(r), priority, key=("poly_alive", r.block))
+                ok = s.send("poly_alive", alive_values(r), priority,
+                            key=(ALIVE_AGAIN if again else "poly_alive", r.block))
                 self.counts["poly_alive_records_sent"] += 1
             if not ok:
                 self.counts["records_dropped_by_link"] += 1
@@ -257,19 +266,23 @@ class Meier(Scheme):
         """A teammate's copy of some parts of a block differs: the newest record of each of
         their vertices goes again, as it was."""
         for r in self.tracker.map.block_records(block, parts):
-            self._post(r, PRIORITY_FORCED)
+            self._post(r, PRIORITY_FORCED, again=True)
             self.counts["poly_records_sent_again"] += 1
 
     def _send_again(self, seqs: list[int]) -> None:
         """A teammate lost these frames of this robot: the polygon records they carried go
-        again, as they were (the newest of each vertex; which ids of a block are alive now)."""
+        again, as they were (the newest of each vertex; which ids of a block are alive now).
+        Repairs lost in turn are left to the block summaries: a teammate that lost a repair
+        has most often heard the record it repeats, and asking again for every lost repair
+        made repairs of repairs most of what a robot sent where teammates go in and out of
+        range."""
         for seq in seqs:
             for key in self.s.keys_sent_in(seq):
                 kind, which = key if isinstance(key, tuple) and len(key) == 2 else (None, None)
                 r = self.tracker.map.last_record(which) if kind == "poly" else (
                     self.tracker.map.alive_block(which) if kind == "poly_alive" else None)
                 if r is not None:
-                    self._post(r, PRIORITY_FORCED)
+                    self._post(r, PRIORITY_FORCED, again=True)
                     self.counts["poly_records_sent_again"] += 1
 
     # --- teammates' polygons ----------------------------------------------------------
