@@ -2,13 +2,14 @@
 target broadcast and utility discount (meier.md).
 
 Variant `polygons` (the paper's scheme, over LoRa): every meier_update_s the robot's own map
-is pooled into its monotone coarse raster (raster.CoarseRaster), the polygon map follows its
+is pooled into its monotone coarse raster (raster.CoarseRaster) and, unless all the robot
+has sent is over meier_radio_share of what its link sustains, the polygon map follows its
 boundary (tracker.PolygonTracker: the forced updates, and as many edge splits as the split
-rate's token bucket holds, none while meier_backlog_max polygon records still wait on the
-link or while all the robot has sent is over meier_radio_share of what its link sustains),
-and the vertices it changed go out as `poly` records, the forced ones first. A
-teammate that finds frames of this robot missing (gaps in the link's sequence numbers) names
-them in `poly_nack` records, and this robot sends the polygon records they carried again;
+rate's token bucket and the budget hold, none while meier_backlog_max polygon records still
+wait on the link), and the vertices it changed go out as `poly` records, the forced ones
+first. A teammate that finds frames of this robot missing (gaps in the link's sequence
+numbers) names them in `poly_nack` records, and this robot sends the polygon records they
+carried again (not a repair lost in turn: the summaries find what that leaves);
 what that cannot name (frames lost beyond the link's window, a request lost, the last frame
 before a silence) the block summaries find: while nothing of its polygons waits, the robot
 sends a `poly_sum` of one block of its vertex ids every meier_sum_period_s, and a teammate
@@ -90,7 +91,7 @@ class Meier(Scheme):
         self.counts = {"target_records_sent": 0, "poly_records_sent": 0, "poly_alive_records_sent": 0,
                        "edge_splits": 0, "records_dropped_by_link": 0, "nack_records_sent": 0,
                        "sum_records_sent": 0, "ask_records_sent": 0,
-                       "poly_records_sent_again": 0}
+                       "poly_records_sent_again": 0, "updates_deferred": 0}
         self.records_by_kind = [0] * 5      # poly records by kind (polygons.REFRESH .. EMERGED)
         self._team_news = False             # the team layer changed since wake_up() last looked
         self._finished = False              # the robot stopped: no more splits or refresh
@@ -110,6 +111,7 @@ class Meier(Scheme):
                                       min_region_cells=math.pi * p.robot_radius_m ** 2 / LATTICE_M ** 2,
                                       min_hole_cells=p.meier_min_hole_m2 / LATTICE_M ** 2)
         self._tokens = 0.0
+        self._untraced = False      # the own raster changed since the polygons last followed it
         radio_Bps = services.radio_Bps
         self._budget_Bps = None if radio_Bps is None else p.meier_radio_share * radio_Bps
         self._credit_B = 0.0        # bytes of the budget not yet used (negative: overdrawn)
@@ -146,7 +148,7 @@ class Meier(Scheme):
     def _task_polygons(self, now_us: int) -> None:
         s, p = self.s, self.s.params
         lm = s.local_map
-        self.own.merge(lm.state_of(0, lm.n, 0, lm.n), lm.row0, lm.col0)
+        self._untraced |= self.own.merge(lm.state_of(0, lm.n, 0, lm.n), lm.row0, lm.col0)
         self._tokens = min(max(1.0, p.meier_split_rate_hz * p.meier_update_s),
                            self._tokens + p.meier_split_rate_hz * p.meier_update_s)
         backlog = len(self._outbox) + self._poly_queued()
@@ -157,8 +159,14 @@ class Meier(Scheme):
             self._credit_B = min(horizon_B, max(-horizon_B, self._credit_B + self._budget_Bps * p.meier_update_s
                                                 - (sent - self._bytes_seen)))
             self._bytes_seen = sent
-            splits = min(splits, max(0, int(self._credit_B // POLY.size_bytes)))
+            if self._credit_B < 0:
+                # Over the budget, what the map forces waits too: fewer, larger updates,
+                # in which a boundary that came and went in between costs nothing.
+                self.counts["updates_deferred"] += 1
+                return
+            splits = min(splits, int(self._credit_B // POLY.size_bytes))
         records = self.tracker.update(self.own.cells, splits, self.own.row0, self.own.col0)
+        self._untraced = False
         self._tokens -= self.tracker.splits
         self.counts["edge_splits"] += self.tracker.splits
         for r in records:
@@ -324,8 +332,9 @@ class Meier(Scheme):
 
     def has_news(self) -> bool:
         """Polygon records waiting, in the outbox or on the link, or on the air until less
-        than NEWS_READ_S ago (not yet read by every receiver)."""
-        return self.variant == "polygons" and self._outbox_us < self._news_until_us
+        than NEWS_READ_S ago (not yet read by every receiver), or an update of the polygons
+        waiting for the budget."""
+        return self.variant == "polygons" and (self._outbox_us < self._news_until_us or self._untraced)
 
     def _team_layer(self) -> tuple[np.ndarray, int, int] | None:
         """The team layer (coarse cells, row0, col0), drawn again when it is used after
